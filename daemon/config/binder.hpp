@@ -1,0 +1,85 @@
+#pragma once
+// Declare-once configuration, after linuxptp's config table: every key is declared by exactly one
+// call that gives its default, its allowed range and one line of documentation. The same calls
+// read a YAML document (reporting "key, line, allowed range" on any mistake), reject keys nobody
+// declared, and print the reference documentation.
+
+#include <cstdint>
+#include <functional>
+#include <initializer_list>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace YAML {
+class Node;
+}
+
+namespace scp::config {
+
+// Every error a user can make in a config file; what() names the key, the line and the remedy.
+class ConfigError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct KeyDoc {
+  std::string path;     // "estimator.beta"
+  std::string type;     // "number", "integer", "bool", "string", "one of a|b", "list"
+  std::string deflt;    // default as text
+  std::string range;    // "[0.001, 1000]" or ""
+  std::string doc;
+};
+
+class Binder {
+ public:
+  // Reads `root` (may be a null node for "all defaults"). `file` is used in messages.
+  static Binder reading(const YAML::Node& root, std::string file);
+  // Records declarations only (for --print-config-reference); outputs get their defaults.
+  static Binder documenting();
+
+  ~Binder();
+  Binder(Binder&&) noexcept;
+  Binder& operator=(Binder&&) noexcept;
+
+  void number(std::string_view key, double& out, double def, double min, double max,
+              std::string_view doc);
+  void integer(std::string_view key, std::int64_t& out, std::int64_t def, std::int64_t min,
+               std::int64_t max, std::string_view doc);
+  void boolean(std::string_view key, bool& out, bool def, std::string_view doc);
+  void text(std::string_view key, std::string& out, std::string_view def, std::string_view doc);
+  void choice(std::string_view key, std::string& out, std::string_view def,
+              std::initializer_list<std::string_view> allowed, std::string_view doc);
+  // A fixed-length list of numbers, each in [min, max] (e.g. theta0: 6 numbers).
+  void numbers(std::string_view key, std::vector<double>& out, const std::vector<double>& def,
+               std::size_t count, double min, double max, std::string_view doc);
+
+  // A nested mapping. Keys declared on the returned binder are "parent.child".
+  Binder section(std::string_view key, std::string_view doc);
+  // A list of mappings; `item` declares the keys of one element (called once per element, and
+  // once with a default-only binder in documenting mode).
+  void list(std::string_view key, std::string_view doc,
+            const std::function<void(Binder& item, std::size_t index)>& item);
+  bool present(std::string_view key) const;
+
+  // Raises ConfigError for the first key in the document that nobody declared. Call once, on
+  // the root binder, after every declaration.
+  void reject_unknown_keys() const;
+
+  // Line (1-based) of a declared key in the file, or 0; for errors found after reading
+  // (cross-key checks such as "a frame id used twice").
+  int line_of(std::string_view key) const;
+  [[noreturn]] void fail(std::string_view key, std::string_view message) const;
+
+  const std::vector<KeyDoc>& docs() const;
+
+ private:
+  struct Shared;
+  struct Impl;
+  explicit Binder(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace scp::config

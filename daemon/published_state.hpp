@@ -1,0 +1,86 @@
+#pragma once
+// What the loop publishes every cycle through a Seqlock, and what the socket server, the
+// checkpointer and the watchdog read. Plain data: no pointers, no std::string, fixed sizes.
+
+#include <array>
+#include <cstdint>
+
+#include "drivers/driver.hpp"
+
+namespace scp::daemon {
+
+enum class RunState : std::uint8_t {
+  starting,  // waiting for the first fresh readings; output held at 0 V
+  running,   // estimator and excitation active
+  fault,     // output at 0 V until clear-fault succeeds
+  stopping,  // shutdown in progress; output at 0 V
+};
+
+const char* to_string(RunState state) noexcept;
+
+inline constexpr std::size_t kReasonChars = 128;
+inline constexpr std::size_t kHistogramBins = 32;
+
+// Wake-up lateness and cycle execution time, kept by the loop thread only.
+struct LoopStatistics {
+  std::uint64_t cycles = 0;
+  std::uint64_t overruns = 0;          // cycles whose work ran past the next deadline
+  std::uint64_t missed_periods = 0;    // periods skipped to resynchronise after an overrun
+  double lateness_min_us = 0.0;
+  double lateness_mean_us = 0.0;
+  double lateness_p99_us = 0.0;        // from the histogram
+  double lateness_max_us = 0.0;
+  double exec_mean_us = 0.0;
+  double exec_max_us = 0.0;
+  // Lateness histogram: bin i counts wake-ups late by [edge(i), edge(i+1)) µs, edges logarithmic
+  // (0, 1, 2, 4, ... µs); the last bin is open-ended.
+  std::array<std::uint64_t, kHistogramBins> lateness_histogram{};
+};
+
+struct EstimateView {
+  double t = 0.0;                       // s, loop time of the last update
+  std::array<double, 6> theta_hat{};
+  std::array<double, 6> sigma{};        // per-parameter standard deviation
+  std::array<double, 2> eps{};          // prediction error, eq. (20)
+  std::array<double, 2> af{};           // filtered signal a_f, eq. (10)
+  std::array<double, 2> af_hat{};       // W_f θ̂, eq. (18)
+  std::array<double, 2> excitation{};   // per block: mechanical, thermal
+  std::array<bool, 2> converged{};      // per block
+  std::uint64_t updates = 0;
+  std::uint64_t skipped = 0;            // samples rejected (non-finite or out of range)
+  bool has_truth = false;               // simulated driver only
+  std::array<double, 6> theta_true{};
+  bool has_physical = false;            // when m and R are configured
+  // b, k, alpha1, alpha2, lambda, Cth derived from θ̂ with the configured m and R.
+  std::array<double, 6> physical{};
+};
+
+struct CommandAck {
+  std::uint64_t seq = 0;  // the Command::seq this answers
+  bool ok = false;
+  std::array<char, kReasonChars> message{};
+};
+
+struct PublishedState {
+  RunState state = RunState::starting;
+  std::array<char, kReasonChars> fault_reason{};
+  double uptime_s = 0.0;
+  double period_s = 0.0;
+  bool excitation_enabled = true;
+  double voltage_command = 0.0;         // V actually sent this cycle (after safety)
+  drivers::Sample last_sample{};
+  LoopStatistics loop{};
+  drivers::DriverStats driver{};
+  EstimateView estimate{};
+  CommandAck last_ack{};
+};
+
+// Commands travel from the socket server (the single producer) to the loop through an SpscRing.
+enum class CommandKind : std::uint8_t { reset, excitation_on, excitation_off, clear_fault };
+
+struct Command {
+  std::uint64_t seq = 0;
+  CommandKind kind = CommandKind::reset;
+};
+
+}  // namespace scp::daemon
