@@ -63,6 +63,9 @@ class Binder {
   void list(std::string_view key, std::string_view doc,
             const std::function<void(Binder& item, std::size_t index)>& item);
   bool present(std::string_view key) const;
+  // True for the one call of a list's `item` callback that only declares the element's keys (for
+  // the reference and unknown-key checks); such an element must not be added to the output.
+  bool is_template() const noexcept;
 
   // Raises ConfigError for the first key in the document that nobody declared. Call once, on
   // the root binder, after every declaration.

@@ -1,0 +1,103 @@
+#pragma once
+// The daemon's whole configuration as plain structs, filled from YAML by declare_daemon_keys()
+// (daemon_keys.cpp), where every key is declared exactly once with its default, range and doc.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "daemon/rt/rt_setup.hpp"
+#include "drivers/can/can_settings.hpp"
+#include "drivers/modbus/modbus_settings.hpp"
+#include "drivers/sim/sim_settings.hpp"
+#include "estimator/estimator.hpp"
+#include "excitation/excitation_settings.hpp"
+
+namespace scp::config {
+
+class Binder;
+
+struct LoopSettings {
+  double period_s = 0.001;
+  rt::RtSettings realtime;
+  double overrun_warning_interval_s = 10.0;  // overrun warnings are rate-limited to one per this
+};
+
+struct ActuatorSettings {
+  double ambient_c = 25.0;     // T̄ = T − ambient
+  double mass_kg = 0.0;        // 0 = unknown; with R, lets the daemon report b, k, α1, α2, λ, Cth
+  double resistance_ohm = 0.0; // 0 = unknown
+};
+
+struct VelocitySettings {
+  double bandwidth_hz = 20.0;
+  double damping = 0.7071;
+};
+
+struct ReplaySettings {
+  std::string file;
+};
+
+struct DriverSelection {
+  std::string type = "sim";  // sim | replay | modbus | can
+  drivers::sim::SimSettings sim;
+  ReplaySettings replay;
+  drivers::modbus::ModbusSettings modbus;
+  drivers::can::CanSettings can;
+  VelocitySettings velocity;
+};
+
+struct ExcitationConfig {
+  bool enabled = true;  // at start; `excitation on|off` changes it at run time
+  std::string profile = "paper";
+  excitation::ExcitationSettings settings;
+};
+
+// Limits that never depend on the estimator: any one exceeded drives 0 V and FAULT.
+struct SafetySettings {
+  double voltage_max_v = 3.3;
+  double temperature_max_c = 100.0;
+  double temperature_min_c = -20.0;
+  double position_abs_max_m = 0.05;
+  double stale_timeout_s = 0.02;  // no fresh reading for this long is a fault
+};
+
+struct SocketSettings {
+  std::string path = "/run/scp-estimator/scp-estimator.sock";
+  std::string group;
+  unsigned mode = 0660;
+  std::int64_t max_clients = 128;
+  std::int64_t max_line_bytes = 4096;
+  double idle_timeout_s = 300.0;
+};
+
+struct StateSettings {
+  std::string directory = "/var/lib/scp-estimator";
+  double checkpoint_interval_s = 60.0;
+  bool warm_start = true;
+};
+
+struct DaemonConfig {
+  std::string source;  // file it came from, for messages and `status`
+  LoopSettings loop;
+  ActuatorSettings actuator;
+  DriverSelection driver;
+  estimator::EstimatorConfig estimator;
+  ExcitationConfig excitation;
+  SafetySettings safety;
+  SocketSettings socket;
+  StateSettings state;
+  std::string log_level = "info";
+};
+
+// Declares every key on `root` and fills `out`. Throws ConfigError naming key, line and range.
+void declare_daemon_keys(Binder& root, DaemonConfig& out);
+
+// Reads and validates a file (unknown keys are errors). Throws ConfigError.
+DaemonConfig load_config_file(const std::string& path);
+// The same from YAML text (tests, fuzzing). `name` appears in messages.
+DaemonConfig load_config_text(const std::string& text, const std::string& name);
+// Markdown reference of every key (scp-estimatord --print-config-reference).
+std::string config_reference_markdown();
+
+}  // namespace scp::config

@@ -1,0 +1,331 @@
+// Every key of the daemon's configuration, declared once: default, range, one line of doc.
+// `scp-estimatord --print-config-reference` prints this table; docs/configuration.md is its output.
+
+#include <yaml-cpp/yaml.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "daemon/config/binder.hpp"
+#include "daemon/config/daemon_config.hpp"
+#include "daemon/config/keys_can.hpp"
+#include "daemon/config/keys_modbus.hpp"
+#include "drivers/sim/sim_driver.hpp"
+#include "excitation/excitation.hpp"
+
+namespace scp::config {
+
+namespace {
+
+constexpr double kHuge = 1e300;
+
+void declare_loop(Binder loop, LoopSettings& out) {
+  loop.number("period_s", out.period_s, 0.001, 1e-4, 1.0,
+              "loop period in seconds (1 kHz = 0.001); also the estimator's sample period");
+  loop.number("overrun_warning_interval_s", out.overrun_warning_interval_s, 10.0, 0.1, 3600.0,
+              "at most one log line about overruns per this many seconds");
+  Binder rt = loop.section("realtime", "real-time set-up of the loop thread");
+  std::int64_t priority = 0;
+  rt.integer("priority", priority, 80, 0, 99,
+             "SCHED_FIFO priority of the loop thread; 0 = ordinary scheduling");
+  out.realtime.priority = static_cast<int>(priority);
+  std::int64_t cpu = -1;
+  rt.integer("cpu", cpu, -1, -1, 1023, "CPU the loop thread is pinned to; -1 = any");
+  out.realtime.cpus.clear();
+  if (cpu >= 0) out.realtime.cpus.push_back(static_cast<int>(cpu));
+  rt.boolean("lock_memory", out.realtime.lock_memory, true,
+             "mlockall() and prefault the heap so the loop never page-faults");
+  std::int64_t heap_mib = 0;
+  rt.integer("prefault_heap_mib", heap_mib, 64, 0, 4096, "MiB of heap touched at start-up");
+  out.realtime.prefault_heap_bytes = static_cast<std::size_t>(heap_mib) << 20;
+  rt.boolean("required", out.realtime.required, false,
+             "true: fail to start when any real-time setting cannot be applied (else: warn)");
+}
+
+void declare_actuator(Binder actuator, ActuatorSettings& out) {
+  actuator.number("ambient_c", out.ambient_c, 25.0, -50.0, 100.0,
+                  "ambient temperature in °C; the model uses T̄ = T − ambient");
+  actuator.number("mass_kg", out.mass_kg, 0.0, 0.0, 1e3,
+                  "moving mass m incl. load; with resistance_ohm lets the daemon report b, k, "
+                  "α1, α2, λ, Cth (0 = unknown)");
+  actuator.number("resistance_ohm", out.resistance_ohm, 0.0, 0.0, 1e6,
+                  "electrical resistance R of the heater (0 = unknown)");
+}
+
+void declare_sim(Binder sim, drivers::sim::SimSettings& out) {
+  Binder plant = sim.section("plant", "physical parameters of the simulated actuator (Table I)");
+  auto& p = out.plant;
+  plant.number("m", p.m, 0.1, 1e-6, 1e3, "mass in kg");
+  plant.number("R", p.R, 1.0, 1e-6, 1e6, "resistance in Ω");
+  plant.number("Cth", p.Cth, 0.9090, 1e-6, 1e6, "thermal mass in Ws/°C");
+  plant.number("lambda", p.lambda, 0.0540, 1e-9, 1e6, "heat conductivity in W/°C");
+  plant.number("b", p.b, 124.7, 0.0, 1e9, "damping in Ns/m");
+  plant.number("k", p.k, 181.3, 1e-9, 1e9, "stiffness in N/m");
+  plant.number("alpha1", p.alpha1, 0.08, 0.0, 1e6, "thermal damping coefficient in Ns/(m·°C)");
+  plant.number("alpha2", p.alpha2, 0.01, -1e6, 1e6, "thermal stiffness coefficient in N/°C");
+  std::int64_t substeps = 0;
+  sim.integer("substeps", substeps, 20, 1, 1000, "RK4 sub-steps per millisecond of plant time");
+  out.substeps = static_cast<int>(substeps);
+  Binder noise = sim.section("noise", "Gaussian sensor noise, standard deviation (0 = none)");
+  noise.number("x", out.noise_x, 0.0, 0.0, 1.0, "on x, in m");
+  noise.number("xdot", out.noise_xdot, 0.0, 0.0, 10.0, "on ẋ, in m/s");
+  noise.number("temperature", out.noise_temperature, 0.0, 0.0, 100.0, "on T, in °C");
+  noise.number("voltage", out.noise_voltage, 0.0, 0.0, 10.0, "on the voltage read back, in V");
+  std::int64_t seed = 0;
+  noise.integer("seed", seed, 1, 0, std::int64_t{1} << 62, "seed of the noise generator");
+  out.seed = static_cast<std::uint64_t>(seed);
+  sim.boolean("measure_xdot", out.measure_xdot, true,
+              "false: the simulated device has no velocity sensor (ẋ is estimated from x)");
+  Binder drift = sim.section("drift", "relative drift per hour of each physical parameter");
+  auto& d = out.drift;
+  drift.number("m", d.m, 0.0, -10.0, 10.0, "of m, per hour");
+  drift.number("R", d.R, 0.0, -10.0, 10.0, "of R, per hour");
+  drift.number("Cth", d.Cth, 0.0, -10.0, 10.0, "of Cth, per hour");
+  drift.number("lambda", d.lambda, 0.0, -10.0, 10.0, "of λ, per hour");
+  drift.number("b", d.b, 0.0, -10.0, 10.0, "of b, per hour");
+  drift.number("k", d.k, 0.0, -10.0, 10.0, "of k, per hour");
+  drift.number("alpha1", d.alpha1, 0.0, -10.0, 10.0, "of α1, per hour");
+  drift.number("alpha2", d.alpha2, 0.0, -10.0, 10.0, "of α2, per hour");
+  Binder fault = sim.section("fault", "fault injection, for tests of the safety layer");
+  fault.choice("kind", out.fault, "none",
+               {"none", "nan_temperature", "stuck_position", "temperature_out_of_range",
+                "read_error", "no_data", "stall"},
+               "sensor fault to inject");
+  fault.number("start_s", out.fault_start_s, 0.0, 0.0, kHuge, "loop time at which it begins");
+  fault.number("duration_s", out.fault_duration_s, 0.0, 0.0, kHuge, "how long (0 = forever)");
+  fault.number("value_c", out.fault_value_c, 400.0, -1e6, 1e6,
+               "temperature reported by temperature_out_of_range, °C");
+}
+
+void declare_driver(Binder driver, DriverSelection& out, const ActuatorSettings& actuator) {
+  driver.choice("type", out.type, "sim", {"sim", "replay", "modbus", "can"},
+                "which device the loop talks to");
+  declare_sim(driver.section("sim", "the simulated SCP actuator (type: sim)"), out.sim);
+  out.sim.ambient_c = actuator.ambient_c;
+  Binder replay = driver.section("replay", "a recorded CSV played back (type: replay)");
+  replay.text("file", out.replay.file, "",
+              "CSV with header t,x,xdot,T,V (SI units, T in °C, uniform period)");
+  Binder modbus = driver.section("modbus", "a Modbus DAQ, TCP or RTU (type: modbus)");
+  declare_modbus_keys(modbus, out.modbus);
+  Binder can = driver.section("can", "a SocketCAN device (type: can)");
+  declare_can_keys(can, out.can);
+  Binder velocity = driver.section("velocity", "ẋ estimated from x when the device has no ẋ");
+  velocity.number("bandwidth_hz", out.velocity.bandwidth_hz, 20.0, 0.01, 1e4,
+                  "bandwidth of the filtered differentiator (lag ≈ 2ζ/ωc)");
+  velocity.number("damping", out.velocity.damping, 0.7071, 0.1, 5.0,
+                  "damping ratio ζ of the differentiator's filter");
+}
+
+void declare_estimator(Binder est, estimator::EstimatorConfig& out) {
+  est.number("beta", out.beta, 3.0, 1e-3, 1e4, "filter pole β in rad/s, eqs. (9)-(15)");
+  est.number("forgetting", out.forgetting, 0.8, 1e-6, 1e3, "forgetting rate λP in 1/s, eq. (25)");
+  est.number("p0", out.p0, 100.0, 1e-12, 1e30,
+             "P(0) = p0·diag(scale)²; the paper: 100 with scale all 1");
+  est.number("p_max", out.p_max, 1e12, 1e-12, 1e30,
+             "bound on P (scaled coordinates): forgetting never drains information below 1/p_max");
+  std::vector<double> theta0;
+  est.numbers("theta0", theta0, {0, 0, 0, 0, 0, 0}, 6, -1e9, 1e9,
+              "initial θ̂ = [b/m, α1/m, k/m, α2/m, λ/Cth, 1/(R·Cth)]; the paper: zeros");
+  for (int i = 0; i < 6; ++i) out.theta0[i] = theta0[static_cast<std::size_t>(i)];
+  std::vector<double> scale;
+  est.numbers("scale", scale, {1, 1, 1, 1, 1, 1}, 6, 1e-12, 1e12,
+              "parameter scale D (θ = D·ϑ), about |θ| is sensible; the paper: ones");
+  for (int i = 0; i < 6; ++i) out.scale[i] = scale[static_cast<std::size_t>(i)];
+  std::string hold;
+  est.choice("voltage_hold", hold, "zoh", {"zoh", "foh"},
+             "zoh: the voltage is held by a DAC over each period (exact); foh: interpolated");
+  out.voltage_hold = hold == "foh" ? estimator::VoltageHold::foh : estimator::VoltageHold::zoh;
+  est.number("max_gap_periods", out.max_gap_periods, 10.0, 1.5, 1e6,
+             "a gap between samples longer than this many periods restarts the filters");
+  est.number("xdot_abs_max", out.xdot_abs_max, 10.0, 1e-9, 1e6,
+             "|ẋ| above this (m/s) is an invalid sample, skipped and counted");
+  est.number("converged_rel_sigma", out.converged_rel_sigma, 0.01, 1e-12, 10.0,
+             "a block counts as converged when every σ_i/|θ̂_i| is below this");
+}
+
+void declare_excitation(Binder exc, ExcitationConfig& out) {
+  exc.boolean("enabled", out.enabled, true, "excite at start (else hold 0 V until `excitation on`)");
+  exc.choice("profile", out.profile, "paper", {"paper", "custom"},
+             "paper: the four-sine voltage of Section IV; custom: the keys below");
+  auto& s = out.settings;
+  exc.number("v_max", s.v_max, 3.2, 0.0, 1e3, "upper clamp of the excitation in V (custom)");
+  exc.number("offset_v", s.offset, 0.0, -1e3, 1e3, "constant part in V (custom)");
+  s.sines.clear();
+  exc.list("sines", "sum of sines (custom)", [&](Binder& item, std::size_t) {
+    excitation::Sine sine;
+    item.number("amplitude_v", sine.amplitude, 0.0, -1e3, 1e3, "amplitude in V");
+    item.number("frequency_hz", sine.frequency_hz, 1.0, 1e-9, 1e4, "frequency in Hz");
+    item.number("phase_rad", sine.phase_rad, 0.0, -1e3, 1e3, "phase in rad: A·sin(2πft + phase)");
+    if (!item.is_template()) s.sines.push_back(sine);
+  });
+  s.steps.clear();
+  exc.list("steps", "steps (custom): from time_s on, level_v is added", [&](Binder& item, std::size_t) {
+    excitation::Step step;
+    item.number("time_s", step.time_s, 0.0, 0.0, kHuge, "time the step occurs, s");
+    item.number("level_v", step.level_v, 0.0, -1e3, 1e3, "height of the step in V");
+    if (!item.is_template()) s.steps.push_back(step);
+  });
+  Binder prbs = exc.section("prbs", "pseudo-random binary sequence (custom)");
+  prbs.number("amplitude_v", s.prbs.amplitude, 0.0, 0.0, 1e3, "±amplitude in V; 0 disables it");
+  prbs.number("bit_period_s", s.prbs.bit_period_s, 1.0, 1e-4, 1e6, "duration of one bit");
+  std::int64_t order = 0;
+  prbs.integer("order", order, 7, 2, 31, "LFSR order; the sequence repeats after 2^order − 1 bits");
+  s.prbs.order = static_cast<int>(order);
+  std::int64_t seed = 0;
+  prbs.integer("seed", seed, 1, 1, 0x7fffffff, "LFSR seed (non-zero)");
+  s.prbs.seed = static_cast<std::uint32_t>(seed);
+}
+
+void declare_safety(Binder safety, SafetySettings& out) {
+  safety.number("voltage_max_v", out.voltage_max_v, 3.3, 0.0, 1e3,
+                "hard limit on the command; a read-back above it is a fault");
+  safety.number("temperature_max_c", out.temperature_max_c, 100.0, -50.0, 1000.0,
+                "actuator temperature above this is a fault (0 V)");
+  safety.number("temperature_min_c", out.temperature_min_c, -20.0, -273.0, 1000.0,
+                "actuator temperature below this is a fault (a broken sensor reads low)");
+  safety.number("position_abs_max_m", out.position_abs_max_m, 0.05, 1e-9, 10.0,
+                "|x| above this is a fault");
+  safety.number("stale_timeout_s", out.stale_timeout_s, 0.02, 1e-4, 60.0,
+                "no fresh reading for this long is a fault");
+}
+
+void declare_socket(Binder socket, SocketSettings& out) {
+  socket.text("path", out.path, "/run/scp-estimator/scp-estimator.sock",
+              "Unix socket of the JSON API");
+  socket.text("group", out.group, "",
+              "group whose members may send mutating requests (reset, excitation, clear-fault)");
+  std::string mode;
+  socket.text("mode", mode, "0660", "permissions of the socket file, octal");
+  std::size_t used = 0;
+  unsigned long parsed = 0;
+  try {
+    parsed = std::stoul(mode, &used, 8);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used != mode.size() || parsed > 0777) {
+    socket.fail("mode", "'" + mode + "' is not an octal permission such as 0660 (range 0000-0777)");
+  }
+  out.mode = static_cast<unsigned>(parsed);
+  socket.integer("max_clients", out.max_clients, 128, 1, 4096, "clients connected at once");
+  socket.integer("max_line_bytes", out.max_line_bytes, 4096, 256, 1 << 20,
+                 "longest request line; longer ones are refused and the client dropped");
+  socket.number("idle_timeout_s", out.idle_timeout_s, 300.0, 0.1, 1e6,
+                "clients silent this long (and not watching) are dropped");
+}
+
+void declare_state(Binder state, StateSettings& out) {
+  state.text("directory", out.directory, "/var/lib/scp-estimator",
+             "where estimator.state is checkpointed (systemd StateDirectory)");
+  state.number("checkpoint_interval_s", out.checkpoint_interval_s, 60.0, 0.1, 1e6,
+               "seconds between checkpoints (and one at shutdown)");
+  state.boolean("warm_start", out.warm_start, true,
+                "resume θ̂ and its covariance from the checkpoint at start");
+}
+
+// Checks that span keys or belong to the libraries' own validation; reported as ConfigErrors.
+void cross_check(const Binder& root, DaemonConfig& cfg) {
+  auto& est = cfg.estimator;
+  est.nominal_period = cfg.loop.period_s;
+  est.x_abs_max = cfg.safety.position_abs_max_m;
+  est.tbar_min = cfg.safety.temperature_min_c - cfg.actuator.ambient_c;
+  est.tbar_max = cfg.safety.temperature_max_c - cfg.actuator.ambient_c;
+  est.voltage_max = std::max(cfg.safety.voltage_max_v, 1e-9) * 1.5;
+  if (cfg.safety.temperature_min_c >= cfg.safety.temperature_max_c) {
+    root.fail("safety", "safety.temperature_min_c must be below safety.temperature_max_c");
+  }
+  if (cfg.actuator.ambient_c <= cfg.safety.temperature_min_c ||
+      cfg.actuator.ambient_c >= cfg.safety.temperature_max_c) {
+    root.fail("actuator", "actuator.ambient_c must lie between safety.temperature_min_c and "
+                          "safety.temperature_max_c");
+  }
+  if (est.p0 > est.p_max) {
+    root.fail("estimator", "estimator.p0 must not exceed estimator.p_max");
+  }
+  if (cfg.excitation.profile == "paper") {
+    cfg.excitation.settings = excitation::paper_excitation();
+  }
+  if (cfg.driver.type == "replay" && cfg.driver.replay.file.empty()) {
+    root.fail("driver", "driver.type is replay but driver.replay.file is empty: name the CSV");
+  }
+  try {
+    estimator::Estimator probe(est);
+    excitation::validate(cfg.excitation.settings);
+    if (cfg.driver.type == "sim") drivers::sim::SimDriver probe_sim(cfg.driver.sim);
+  } catch (const std::exception& e) {
+    throw ConfigError(cfg.source + ": " + e.what());
+  }
+}
+
+DaemonConfig load_node(const YAML::Node& root_node, const std::string& name) {
+  DaemonConfig cfg;
+  cfg.source = name;
+  Binder root = Binder::reading(root_node, name);
+  declare_daemon_keys(root, cfg);
+  root.reject_unknown_keys();
+  cross_check(root, cfg);
+  return cfg;
+}
+
+YAML::Node parse_yaml(const std::string& text, const std::string& name) {
+  try {
+    return YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    throw ConfigError(name + ":" + std::to_string(e.mark.line + 1) + ": not valid YAML: " + e.msg);
+  }
+}
+
+}  // namespace
+
+void declare_daemon_keys(Binder& root, DaemonConfig& out) {
+  declare_loop(root.section("loop", "timing of the real-time loop"), out.loop);
+  declare_actuator(root.section("actuator", "facts about the actuator on the bench"),
+                   out.actuator);
+  declare_driver(root.section("driver", "the device the loop reads and drives"), out.driver,
+                 out.actuator);
+  declare_estimator(root.section("estimator", "the filtered least-squares estimator"),
+                    out.estimator);
+  declare_excitation(root.section("excitation", "the identification voltage"), out.excitation);
+  declare_safety(root.section("safety", "limits that never depend on the estimator"), out.safety);
+  declare_socket(root.section("socket", "the local JSON API"), out.socket);
+  declare_state(root.section("state", "checkpoints of what the estimator learned"), out.state);
+  root.choice("log_level", out.log_level, "info", {"trace", "debug", "info", "warn", "error"},
+              "least severe log level written to stderr (journald)");
+}
+
+DaemonConfig load_config_file(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) {
+    throw ConfigError(path + ": cannot open the configuration file (does it exist and is it "
+                             "readable by this user?)");
+  }
+  std::stringstream text;
+  text << in.rdbuf();
+  return load_node(parse_yaml(text.str(), path), path);
+}
+
+DaemonConfig load_config_text(const std::string& text, const std::string& name) {
+  return load_node(parse_yaml(text, name), name);
+}
+
+std::string config_reference_markdown() {
+  DaemonConfig defaults;
+  Binder doc = Binder::documenting();
+  declare_daemon_keys(doc, defaults);
+  std::ostringstream out;
+  out << "# Configuration reference\n\n"
+      << "Generated by `scp-estimatord --print-config-reference`. Every key is optional; the\n"
+      << "default applies when it is missing. Unknown keys are errors.\n\n"
+      << "| key | type | default | allowed | meaning |\n|---|---|---|---|---|\n";
+  for (const auto& key : doc.docs()) {
+    if (key.type == "section") {
+      out << "| **" << key.path << "** | section | | | " << key.doc << " |\n";
+      continue;
+    }
+    out << "| `" << key.path << "` | " << key.type << " | " << key.deflt << " | " << key.range
+        << " | " << key.doc << " |\n";
+  }
+  return out.str();
+}
+
+}  // namespace scp::config

@@ -1,0 +1,97 @@
+#include "daemon/config/keys_can.hpp"
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace scp::config {
+namespace {
+
+using drivers::can::ByteOrder;
+using drivers::can::CanSettings;
+using drivers::can::CanSignal;
+
+// Declares the DBC layout of one signal; `def` gives the defaults (the simulated node's layout).
+void declare_layout(Binder& b, CanSignal& sig, const CanSignal& def) {
+  std::int64_t id = 0, dlc = 0, start = 0, length = 0;
+  b.integer("frame_id", id, def.frame_id, 0, 0x1FFFFFFF,
+            "CAN identifier (DBC BO_ id without the 0x80000000 extended flag)");
+  b.boolean("extended", sig.extended, def.extended, "29-bit identifier (else 11-bit, ≤ 0x7FF)");
+  b.integer("dlc", dlc, def.dlc, 0, 64,
+            "payload bytes of the frame: ≤ 8 for classic CAN; 12..64 only with fd: true");
+  b.integer("start_bit", start, def.start_bit, 0, 511,
+            "DBC start bit: the LSB for little_endian, the MSB for big_endian (DBC numbering)");
+  b.integer("length_bits", length, def.length_bits, 1, 64, "signal length in bits");
+  std::string order;
+  b.choice("byte_order", order,
+           def.byte_order == ByteOrder::little_endian ? "little_endian" : "big_endian",
+           {"little_endian", "big_endian", "intel", "motorola"},
+           "little_endian = intel (DBC @1), big_endian = motorola (DBC @0)");
+  b.boolean("signed", sig.is_signed, def.is_signed, "two's complement (DBC '-') or unsigned ('+')");
+  b.number("scale", sig.scale, def.scale, -1e12, 1e12,
+           "physical = raw · scale + offset, SI units (m, m/s, °C, V); DBC factor");
+  b.number("offset", sig.offset, def.offset, -1e12, 1e12, "DBC offset");
+  sig.frame_id = static_cast<std::uint32_t>(id);
+  sig.dlc = static_cast<int>(dlc);
+  sig.start_bit = static_cast<int>(start);
+  sig.length_bits = static_cast<int>(length);
+  sig.byte_order = (order == "big_endian" || order == "motorola") ? ByteOrder::big_endian
+                                                                  : ByteOrder::little_endian;
+}
+
+}  // namespace
+
+void declare_can_keys(Binder& can_section, CanSettings& out) {
+  const CanSettings def = drivers::can::default_can_settings();
+  can_section.text("interface", out.interface, def.interface,
+                   "SocketCAN interface (`ip link show type can`), e.g. can0 or vcan0");
+  can_section.boolean("fd", out.fd, def.fd,
+                      "CAN FD (frames up to 64 bytes; the interface must "
+                      "be configured with `fd on`)");
+  std::int64_t tx_full = 0, max_frames = 0;
+  can_section.integer("tx_full_fault_after", tx_full, def.tx_full_fault_after, 1, 100000,
+                      "consecutive cycles with a full transmit queue before a fault");
+  can_section.integer("max_frames_per_cycle", max_frames, def.max_frames_per_cycle, 1, 100000,
+                      "bound on the frames read per cycle, so a flooded bus cannot stall the loop");
+  out.tx_full_fault_after = static_cast<int>(tx_full);
+  out.max_frames_per_cycle = static_cast<int>(max_frames);
+
+  // Sub-binders stay alive until the cross-key checks, which fail on the offending one.
+  std::vector<std::pair<std::string, Binder>> sections;
+  static constexpr const char* kDocs[4] = {
+      "position x in m (required)", "velocity ẋ in m/s (optional; else estimated from x)",
+      "temperature T in °C, absolute (required)", "voltage read back in V (optional)"};
+  for (int i = 0; i < 4; ++i) {
+    const std::string name = drivers::can::kSignalNames[i];
+    Binder b = can_section.section(name, kDocs[i]);
+    CanSignal& sig = *drivers::can::signal_at(out, i);
+    const CanSignal& d = *drivers::can::signal_at(def, i);
+    b.boolean("present", sig.present, d.present, "whether the DAQ sends this signal");
+    declare_layout(b, sig, d);
+    b.number("stale_timeout_s", sig.stale_timeout_s, d.stale_timeout_s, 1e-4, 60.0,
+             "a value older than this faults the driver (\"CAN signal x stale\")");
+    sections.emplace_back(name, std::move(b));
+  }
+  Binder cmd = can_section.section("command", "the frame carrying the voltage command (V)");
+  declare_layout(cmd, out.command.signal, def.command.signal);
+  out.command.signal.present = true;
+  cmd.boolean("send_each_cycle", out.command.send_each_cycle, def.command.send_each_cycle,
+              "send every cycle (a watchdog on the DAQ can then detect a dead daemon); false: "
+              "only on change");
+  sections.emplace_back("command", std::move(cmd));
+
+  if (can_section.is_template()) return;
+  if (const auto problem = drivers::can::validate_can_settings(out)) {
+    const std::string& key = problem->key;
+    const auto dot = key.find('.');
+    if (dot != std::string::npos) {
+      for (auto& [name, b] : sections) {
+        if (name == key.substr(0, dot)) b.fail(key.substr(dot + 1), problem->message);
+      }
+    }
+    can_section.fail(key, problem->message);
+  }
+}
+
+}  // namespace scp::config

@@ -1,0 +1,220 @@
+#include "daemon/config/keys_modbus.hpp"
+
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include "drivers/modbus/register_codec.hpp"
+#include "drivers/modbus/register_map.hpp"
+
+namespace scp::config {
+
+namespace {
+
+using drivers::modbus::CommandRegister;
+using drivers::modbus::ModbusSettings;
+using drivers::modbus::RegisterSignal;
+using drivers::modbus::RegisterType;
+using drivers::modbus::Table;
+using drivers::modbus::WordOrder;
+
+RegisterType parse_type(const std::string& s) {
+  if (s == "int16") return RegisterType::int16;
+  if (s == "uint16") return RegisterType::uint16;
+  if (s == "int32") return RegisterType::int32;
+  if (s == "uint32") return RegisterType::uint32;
+  return RegisterType::float32;
+}
+
+WordOrder parse_order(const std::string& s) {
+  if (s == "ab") return WordOrder::ab;
+  if (s == "ba") return WordOrder::ba;
+  return WordOrder::none;
+}
+
+constexpr std::string_view kTypeDoc =
+    "register type: int16|uint16 use one register, int32|uint32|float32 two";
+constexpr std::string_view kOrderDoc =
+    "for 32-bit types, which register holds the high word: ab = the lower address (Modbus "
+    "convention), ba = the higher ('word-swapped'); required for 32-bit types";
+
+// Declares type and word_order; for 32-bit types a missing word order is an error, because
+// guessing it wrong turns 1.5 into 5.9e-39 without any other symptom.
+void declare_format(Binder& b, RegisterType& type, WordOrder& order, const std::string& def_type,
+                    bool written) {
+  std::string type_text;
+  std::string order_value;
+  b.choice("type", type_text, def_type, {"int16", "uint16", "int32", "uint32", "float32"},
+           kTypeDoc);
+  b.choice("word_order", order_value, "none", {"none", "ab", "ba"}, kOrderDoc);
+  type = parse_type(type_text);
+  order = parse_order(order_value);
+  if (!written) {
+    // The default map (the one scp-simdaq serves when given no map) is ab.
+    if (order == WordOrder::none) order = WordOrder::ab;
+    return;
+  }
+  if (drivers::modbus::register_count(type) == 2 && order == WordOrder::none) {
+    // Point at a line the user wrote: the type if given, else any key of this entry.
+    std::string_view at = "type";
+    for (const std::string_view k : {"word_order", "type", "address", "table", "scale", "offset"}) {
+      if (b.present(k)) {
+        at = k;
+        break;
+      }
+    }
+    b.fail(at, type_text + (b.present("type") ? "" : " (the default type)") +
+                   " spans two registers: set word_order: ab (high word first, the Modbus "
+                   "convention) or ba (word-swapped), as the device manual says");
+  }
+}
+
+void declare_signal(Binder& signals, std::string_view name, std::string_view doc,
+                    RegisterSignal& sig, bool required, bool any_signal_written) {
+  const bool written = signals.present(name);
+  Binder b = signals.section(name, doc);
+  std::string table;
+  std::int64_t address = 0;
+  b.choice("table", table, "input", {"input", "holding"},
+           "input registers (function 4) or holding registers (function 3)");
+  b.integer(
+      "address", address, sig.address, 0, 65535,
+      "0-based protocol address of the first register (manual's 30001/40001 minus that base)");
+  declare_format(b, sig.type, sig.word_order, "float32", written);
+  b.number("scale", sig.scale, sig.scale, -1e12, 1e12,
+           "engineering value = raw * scale + offset, in SI units (m, m/s, degC, V)");
+  b.number("offset", sig.offset, sig.offset, -1e12, 1e12, "added after scaling");
+  sig.table = table == "holding" ? Table::holding : Table::input;
+  sig.address = static_cast<int>(address);
+  sig.present = required || written;
+  if (written && sig.scale == 0.0)
+    b.fail("scale", "must not be 0: every reading would be the offset");
+  if (required && any_signal_written && !written) {
+    signals.fail(name, "is required: the estimator needs x and temperature; give its register");
+  }
+  if (sig.present && sig.address + drivers::modbus::register_count(sig.type) - 1 > 65535) {
+    b.fail("address", "the value's registers run past 65535");
+  }
+}
+
+}  // namespace
+
+void declare_modbus_keys(Binder& m, ModbusSettings& out) {
+  std::string transport;
+  m.choice("transport", transport, "tcp", {"tcp", "rtu"},
+           "Modbus TCP (Ethernet) or Modbus RTU (RS-485/RS-232 serial line)");
+  out.transport =
+      transport == "rtu" ? drivers::modbus::Transport::rtu : drivers::modbus::Transport::tcp;
+  {
+    Binder tcp = m.section("tcp", "Modbus TCP connection (used when transport: tcp)");
+    std::int64_t port = 0;
+    tcp.text("host", out.host, "127.0.0.1", "IP address or host name of the DAQ");
+    tcp.integer("port", port, 1502, 1, 65535, "TCP port (502 is the Modbus standard)");
+    out.port = static_cast<int>(port);
+  }
+  {
+    Binder rtu = m.section("rtu", "Modbus RTU serial line (used when transport: rtu)");
+    std::int64_t baud = 0, data_bits = 0, stop_bits = 0;
+    std::string parity;
+    rtu.text("device", out.device, "/dev/ttyUSB0",
+             "serial device; prefer a stable /dev/serial/by-id/... path");
+    rtu.integer("baud", baud, 115200, 1200, 4000000, "bits per second");
+    rtu.choice("parity", parity, "N", {"N", "E", "O"}, "none, even or odd (Modbus default: E)");
+    rtu.integer("data_bits", data_bits, 8, 5, 8, "data bits per character (Modbus RTU: 8)");
+    rtu.integer("stop_bits", stop_bits, 1, 1, 2,
+                "stop bits (Modbus: 1 with parity, 2 without; many devices accept 1)");
+    out.baud = static_cast<int>(baud);
+    out.parity = parity.empty() ? 'N' : parity[0];
+    out.data_bits = static_cast<int>(data_bits);
+    out.stop_bits = static_cast<int>(stop_bits);
+  }
+  std::int64_t unit = 0, failures = 0, gap = 0;
+  m.integer(
+      "unit_id", unit, 1, 0, 255,
+      "Modbus unit (slave) id of the DAQ: 1-247 on RTU; TCP devices often ignore it or use 255");
+  out.unit_id = static_cast<int>(unit);
+  m.number("response_timeout", out.response_timeout_s, 0.0004, 0.0001, 10.0,
+           "s a transaction may wait for its reply; times the transactions per cycle it must fit "
+           "in loop.period");
+  m.integer("max_consecutive_failures", failures, 3, 0, 1000,
+            "failed reads (or writes) in a row tolerated as 'no data' before the loop faults");
+  out.max_consecutive_failures = static_cast<int>(failures);
+  {
+    Binder rc = m.section("reconnect", "back-off of the reconnect thread after a lost link");
+    rc.number("initial", out.reconnect_initial_s, 0.1, 0.001, 60.0,
+              "s before the first reconnection attempt; doubled after each failed attempt");
+    rc.number("max", out.reconnect_max_s, 5.0, 0.001, 3600.0,
+              "s, the longest wait between attempts");
+    if (out.reconnect_max_s < out.reconnect_initial_s) {
+      rc.fail("max", "must be at least reconnect.initial");
+    }
+  }
+  m.integer("max_read_gap", gap, 8, 0, 120,
+            "unused registers read and discarded to fetch two signals in one request");
+  out.max_read_gap = static_cast<int>(gap);
+
+  if (out.transport == drivers::modbus::Transport::rtu && (out.unit_id < 1 || out.unit_id > 247)) {
+    m.fail("unit_id", "on RTU the unit id must be 1-247 (0 is broadcast, which gets no reply)");
+  }
+
+  Binder signals = m.section(
+      "signals", "register map of the measured signals (defaults: scp-simdaq's default map)");
+  const bool any = signals.present("x") || signals.present("xdot") ||
+                   signals.present("temperature") || signals.present("voltage");
+  declare_signal(signals, "x", "length change of the actuator, m (required)", out.x, true, any);
+  declare_signal(signals, "xdot", "velocity, m/s (optional; absent: the loop estimates it)",
+                 out.xdot, false, any);
+  declare_signal(signals, "temperature", "actuator temperature, degC absolute (required)",
+                 out.temperature, true, any);
+  declare_signal(signals, "voltage",
+                 "read-back of the applied voltage, V (optional; absent: the last command)",
+                 out.voltage, false, any);
+  {
+    CommandRegister& c = out.command;
+    const bool written = m.present("command");
+    Binder b = m.section("command", "holding register(s) the voltage command is written to");
+    std::int64_t address = 0;
+    b.integer("address", address, 0, 0, 65535, "0-based holding register address");
+    declare_format(b, c.type, c.word_order, "float32", written);
+    b.number("scale", c.scale, 1.0, -1e12, 1e12,
+             "raw = (V - offset) / scale, rounded for integers");
+    b.number("offset", c.offset, 0.0, -1e12, 1e12, "V subtracted before scaling");
+    b.number("min", c.min_volts, 0.0, -1000.0, 1000.0, "lowest voltage the DAQ output accepts, V");
+    b.number("max", c.max_volts, 10.0, -1000.0, 1000.0,
+             "highest voltage the DAQ output accepts, V");
+    c.address = static_cast<int>(address);
+    if (c.scale == 0.0) b.fail("scale", "must not be 0");
+    if (c.max_volts < c.min_volts) b.fail("max", "must be at least command.min");
+    if (c.min_volts > 0.0 || c.max_volts < 0.0) {
+      b.fail(c.min_volts > 0.0 ? "min" : "max",
+             "0 V must lie in [min, max]: the safe state writes 0 V");
+    }
+    std::array<std::uint16_t, 2> regs{};
+    for (const double v : {c.min_volts, 0.0, c.max_volts}) {
+      if (!drivers::modbus::encode_command(c, v, regs.data())) {
+        b.fail(c.scale != 1.0 || c.offset != 0.0 ? "scale" : "type",
+               std::to_string(v) + " V does not fit " +
+                   std::string(drivers::modbus::type_name(c.type)) + " with scale " +
+                   std::to_string(c.scale) + " and offset " + std::to_string(c.offset) +
+                   "; change command.type, scale or min/max");
+      }
+    }
+    if (c.address + drivers::modbus::register_count(c.type) - 1 > 65535) {
+      b.fail("address", "the command's registers run past 65535");
+    }
+  }
+  if (const auto clash = drivers::modbus::find_overlap(out)) {
+    const auto& [a, b] = *clash;
+    // Name the later entry at its own line; "signals.x" is the key "x" of the signals section.
+    constexpr std::string_view kPrefix = "signals.";
+    const bool is_signal = b.name.substr(0, kPrefix.size()) == kPrefix;
+    const Binder& at = is_signal ? signals : m;
+    at.fail(is_signal ? b.name.substr(kPrefix.size()) : b.name,
+            std::string(drivers::modbus::table_name(b.table)) + " registers " +
+                std::to_string(b.first) + "-" + std::to_string(b.last) + " overlap " +
+                std::string(a.name) + " (registers " + std::to_string(a.first) + "-" +
+                std::to_string(a.last) + "); give each signal its own registers");
+  }
+}
+
+}  // namespace scp::config

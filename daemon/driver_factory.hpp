@@ -1,0 +1,17 @@
+#pragma once
+// The registry of drivers by name: `driver.type` in the config picks one entry.
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "daemon/config/daemon_config.hpp"
+#include "drivers/driver.hpp"
+
+namespace scp::daemon {
+
+// Throws drivers::DriverError naming the type and the remedy.
+std::unique_ptr<drivers::Driver> make_driver(const config::DaemonConfig& config);
+std::vector<std::string> driver_names();
+
+}  // namespace scp::daemon

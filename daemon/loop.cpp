@@ -1,0 +1,265 @@
+#include "daemon/loop.hpp"
+
+#include <cmath>
+#include <cstring>
+#include <thread>
+
+#include "estimator/model.hpp"
+
+namespace scp::daemon {
+
+namespace {
+
+template <std::size_t N, class Vec>
+std::array<double, N> to_array(const Vec& v) noexcept {
+  std::array<double, N> out{};
+  for (std::size_t i = 0; i < N; ++i) out[i] = v[static_cast<Eigen::Index>(i)];
+  return out;
+}
+
+}  // namespace
+
+const char* to_string(RunState state) noexcept {
+  switch (state) {
+    case RunState::starting: return "STARTING";
+    case RunState::running: return "RUNNING";
+    case RunState::fault: return "FAULT";
+    case RunState::stopping: return "STOPPING";
+  }
+  return "UNKNOWN";
+}
+
+Loop::Loop(const config::DaemonConfig& config, drivers::Driver& driver,
+           rt::Seqlock<PublishedState>& published, CommandRing& commands, RecordRing* record,
+           bool block_when_record_full)
+    : config_(config),
+      driver_(driver),
+      published_(published),
+      commands_(commands),
+      record_(record),
+      block_when_record_full_(block_when_record_full),
+      estimator_(config.estimator),
+      excitation_(config.excitation.settings),
+      velocity_(velocity::VelocitySettings{config.driver.velocity.bandwidth_hz,
+                                           config.driver.velocity.damping}),
+      physical_known_(config.actuator.mass_kg > 0.0 && config.actuator.resistance_ohm > 0.0),
+      excitation_enabled_(config.excitation.enabled) {
+  set_reason(fault_reason_, "");
+}
+
+CycleResult Loop::cycle(const drivers::CycleTime& now) noexcept {
+  ++cycles_;
+  handle_commands(now);
+
+  // 1. Read.
+  drivers::Sample sample;
+  const drivers::IoResult read = driver_.read(now, sample);
+  sample_fresh_ = false;
+  if (read.status == drivers::IoStatus::end_of_data) {
+    shutdown();
+    publish(now);
+    return CycleResult::end_of_data;
+  }
+  driver_ok_ = read.status != drivers::IoStatus::error;
+  if (read.status == drivers::IoStatus::error) {
+    enter_fault(read.reason[0] ? read.reason : "driver read failed");
+  } else if (read.status == drivers::IoStatus::ok) {
+    // ẋ from x when the device does not measure it (filtered differentiator, daemon/velocity).
+    if (!std::isfinite(sample.xdot) && std::isfinite(sample.x)) {
+      const double dt = have_fresh_ ? sample.t - last_velocity_t_ : 0.0;
+      sample.xdot = velocity_.update(sample.x, dt);
+      last_velocity_t_ = sample.t;
+    }
+    sample_ = sample;
+    sample_fresh_ = true;
+    have_fresh_ = true;
+    last_fresh_t_ = now.t;
+  }
+
+  // 2. Safety: limits on the sample and staleness, independent of the estimator.
+  if (sample_fresh_) {
+    Reason why{};
+    sample_valid_ = check_sample(sample_, config_.safety, /*xdot_required=*/true, why);
+    if (!sample_valid_) enter_fault(why);
+  } else if (state_ != RunState::fault) {
+    const double age = have_fresh_ ? now.t - last_fresh_t_ : now.t;
+    if (age > config_.safety.stale_timeout_s) {
+      Reason why{};
+      std::snprintf(why.data(), why.size(),
+                    "no fresh reading for %.3f s (safety.stale_timeout_s = %.3f s)", age,
+                    config_.safety.stale_timeout_s);
+      enter_fault(why);
+    }
+  }
+  if (state_ == RunState::starting && sample_fresh_ && sample_valid_ && driver_ok_) {
+    state_ = RunState::running;  // fresh readings arrived: the output may leave 0 V
+  }
+
+  // 3. Estimate. The estimator rejects non-finite and out-of-range samples by itself.
+  if (sample_fresh_) {
+    const estimator::Measurement m{sample_.t, sample_.x, sample_.xdot,
+                                   sample_.temperature - config_.actuator.ambient_c,
+                                   sample_.voltage};
+    estimator_.update(m);
+    if (cycles_ % kStatePublishCycles == 0) estimator_state_.store(to_view(estimator_.state()));
+  }
+
+  // 4. Excitation and 5. the safety clamp: 0 V unless running.
+  double command = 0.0;
+  if (state_ == RunState::running && excitation_enabled_) {
+    command = clamp_voltage(excitation_.voltage(now.t), config_.safety);
+  }
+
+  // 6. Write.
+  if (state_ == RunState::running) {
+    const drivers::IoResult written = driver_.write_voltage(command);
+    if (written.status == drivers::IoStatus::error) {
+      enter_fault(written.reason[0] ? written.reason : "driver write failed");
+      command = 0.0;
+    }
+  } else {
+    driver_.safe_state();
+    command = 0.0;
+  }
+  voltage_command_ = command;
+
+  // 7. Publish.
+  publish(now);
+  if (record_ != nullptr && sample_fresh_) record();
+  return CycleResult::ok;
+}
+
+void Loop::handle_commands(const drivers::CycleTime& now) noexcept {
+  Command command;
+  while (commands_.try_pop(command)) {
+    ack_.seq = command.seq;
+    ack_.ok = true;
+    set_reason(ack_.message, "done");
+    switch (command.kind) {
+      case CommandKind::reset:
+        estimator_.reset();
+        velocity_.reset();
+        set_reason(ack_.message, "estimator restarted from its initial values");
+        break;
+      case CommandKind::excitation_on:
+        excitation_enabled_ = true;
+        set_reason(ack_.message, "excitation on");
+        break;
+      case CommandKind::excitation_off:
+        excitation_enabled_ = false;
+        set_reason(ack_.message, "excitation off: output held at 0 V");
+        break;
+      case CommandKind::clear_fault: {
+        if (state_ != RunState::fault) {
+          set_reason(ack_.message, "no fault to clear");
+          break;
+        }
+        Reason why{};
+        if (cause_gone(why)) {
+          state_ = RunState::starting;  // 0 V until the next fresh reading
+          set_reason(fault_reason_, "");
+          set_reason(ack_.message, "fault cleared");
+        } else {
+          ack_.ok = false;
+          // The cause is the more useful half of the message; keep it whole.
+          ack_.message = why;
+        }
+        break;
+      }
+    }
+  }
+  (void)now;
+}
+
+bool Loop::cause_gone(Reason& why) const noexcept {
+  if (!driver_ok_) {
+    set_reason(why, "the driver still reports errors");
+    return false;
+  }
+  if (!have_fresh_ || !sample_fresh_) {
+    set_reason(why, "no fresh reading this cycle");
+    return false;
+  }
+  return check_sample(sample_, config_.safety, true, why);
+}
+
+void Loop::enter_fault(const char* reason) noexcept {
+  Reason r{};
+  set_reason(r, reason);
+  enter_fault(r);
+}
+
+void Loop::enter_fault(const Reason& reason) noexcept {
+  if (state_ == RunState::stopping) return;
+  if (state_ != RunState::fault) fault_reason_ = reason;  // keep the first cause
+  state_ = RunState::fault;
+  driver_.safe_state();  // 0 V in the same cycle
+  voltage_command_ = 0.0;
+}
+
+void Loop::shutdown() noexcept {
+  state_ = RunState::stopping;
+  driver_.safe_state();
+  voltage_command_ = 0.0;
+}
+
+void Loop::publish(const drivers::CycleTime& now) noexcept {
+  PublishedState out;
+  out.state = state_;
+  out.fault_reason = fault_reason_;
+  out.uptime_s = now.t;
+  out.period_s = now.period;
+  out.excitation_enabled = excitation_enabled_;
+  out.voltage_command = voltage_command_;
+  out.last_sample = sample_;
+  out.loop = stats_;
+  out.driver = driver_.stats();
+  out.last_ack = ack_;
+
+  const estimator::Estimate& e = estimator_.estimate();
+  EstimateView& v = out.estimate;
+  v.t = e.t;
+  v.theta_hat = to_array<6>(e.theta_hat);
+  v.sigma = to_array<6>(e.sigma);
+  v.eps = to_array<2>(e.eps);
+  v.af = to_array<2>(e.af);
+  v.af_hat = to_array<2>(e.af_hat);
+  v.excitation = to_array<2>(e.excitation);
+  v.converged = {e.converged_mech, e.converged_thermal};
+  v.updates = e.updates;
+  v.skipped = e.skipped_nonfinite + e.skipped_range + e.skipped_time;
+  v.has_truth = driver_.true_theta(now.t, v.theta_true);
+  if (physical_known_) {
+    const estimator::PhysicalParams p = estimator::physical_from_theta(
+        e.theta_hat, config_.actuator.mass_kg, config_.actuator.resistance_ohm);
+    v.has_physical = true;
+    v.physical = {p.b, p.k, p.alpha1, p.alpha2, p.lambda, p.Cth};
+  }
+  published_.store(out);
+}
+
+void Loop::record() noexcept {
+  const estimator::Estimate& e = estimator_.estimate();
+  RecordRow row;
+  row.t = sample_.t;
+  row.x = sample_.x;
+  row.xdot = sample_.xdot;
+  row.temperature = sample_.temperature;
+  row.voltage = sample_.voltage;
+  row.voltage_command = voltage_command_;
+  row.theta_hat = to_array<6>(e.theta_hat);
+  row.sigma = to_array<6>(e.sigma);
+  row.eps = to_array<2>(e.eps);
+  row.af = to_array<2>(e.af);
+  row.af_hat = to_array<2>(e.af_hat);
+  row.state = static_cast<std::uint8_t>(state_);
+  while (!record_->try_push(row)) {
+    if (!block_when_record_full_) {
+      ++dropped_rows_;
+      return;
+    }
+    std::this_thread::yield();  // batch run: the recorder catches up, no row is lost
+  }
+}
+
+}  // namespace scp::daemon

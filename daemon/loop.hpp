@@ -1,0 +1,96 @@
+#pragma once
+// One cycle of the daemon, the same code in real time and in batch runs:
+//   commands → driver read → safety check → estimator update → excitation → safety clamp →
+//   driver write → publish.
+// The caller owns timing: the real-time runner sleeps to absolute deadlines between cycles, the
+// batch runner does not sleep at all. After construction nothing here allocates, locks or logs.
+
+#include <memory>
+
+#include "daemon/config/daemon_config.hpp"
+#include "daemon/estimator_state.hpp"
+#include "daemon/published_state.hpp"
+#include "daemon/record_row.hpp"
+#include "daemon/rt/seqlock.hpp"
+#include "daemon/rt/spsc_ring.hpp"
+#include "daemon/safety.hpp"
+#include "daemon/velocity/velocity_estimator.hpp"
+#include "drivers/driver.hpp"
+#include "estimator/estimator.hpp"
+#include "excitation/excitation.hpp"
+
+namespace scp::daemon {
+
+using CommandRing = rt::SpscRing<Command, 64>;
+using RecordRing = rt::SpscRing<RecordRow, 16384>;
+using EstimatorStateCell = rt::Seqlock<EstimatorStateView>;
+
+enum class CycleResult { ok, end_of_data };
+
+class Loop {
+ public:
+  // `record` may be null. With `block_when_record_full` (batch runs) a full ring makes the cycle
+  // wait for the recorder; in real time a full ring drops the row and counts it.
+  Loop(const config::DaemonConfig& config, drivers::Driver& driver,
+       rt::Seqlock<PublishedState>& published, CommandRing& commands, RecordRing* record,
+       bool block_when_record_full);
+
+  CycleResult cycle(const drivers::CycleTime& now) noexcept;
+
+  // 0 V and STOPPING; every shutdown path calls it (idempotent).
+  void shutdown() noexcept;
+
+  // Loop statistics are kept by the runner that owns the timing; they go out with the next
+  // snapshot.
+  void set_loop_statistics(const LoopStatistics& stats) noexcept { stats_ = stats; }
+
+  // Warm start, before the first cycle. False when the state is unusable (cold start then).
+  bool restore(const estimator::State& state) noexcept { return estimator_.restore(state); }
+
+  RunState state() const noexcept { return state_; }
+  const estimator::Estimator& estimator() const noexcept { return estimator_; }
+  // Published every kStatePublishCycles for the checkpointer thread.
+  const EstimatorStateCell& estimator_state() const noexcept { return estimator_state_; }
+  std::uint64_t dropped_record_rows() const noexcept { return dropped_rows_; }
+
+  static constexpr std::uint64_t kStatePublishCycles = 100;
+
+ private:
+  void handle_commands(const drivers::CycleTime& now) noexcept;
+  void enter_fault(const char* reason) noexcept;
+  void enter_fault(const Reason& reason) noexcept;
+  void publish(const drivers::CycleTime& now) noexcept;
+  void record() noexcept;
+  bool cause_gone(Reason& why) const noexcept;
+
+  const config::DaemonConfig& config_;
+  drivers::Driver& driver_;
+  rt::Seqlock<PublishedState>& published_;
+  CommandRing& commands_;
+  RecordRing* record_;
+  bool block_when_record_full_;
+
+  estimator::Estimator estimator_;
+  excitation::Excitation excitation_;
+  velocity::VelocityEstimator velocity_;
+  EstimatorStateCell estimator_state_;
+  bool physical_known_;
+
+  RunState state_ = RunState::starting;
+  Reason fault_reason_{};
+  bool excitation_enabled_;
+  drivers::Sample sample_{};
+  bool sample_fresh_ = false;      // this cycle's read delivered a new, valid sample
+  bool sample_valid_ = false;      // the last delivered sample passed the safety check
+  double last_fresh_t_ = 0.0;      // loop time of the last fresh sample
+  bool have_fresh_ = false;
+  double last_velocity_t_ = 0.0;
+  bool driver_ok_ = true;
+  double voltage_command_ = 0.0;
+  CommandAck ack_{};
+  LoopStatistics stats_{};
+  std::uint64_t cycles_ = 0;
+  std::uint64_t dropped_rows_ = 0;
+};
+
+}  // namespace scp::daemon

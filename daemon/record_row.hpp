@@ -1,0 +1,25 @@
+#pragma once
+// One row of a recording, pushed by the loop into an SPSC ring and written to CSV by the
+// recorder thread (the loop never touches a file).
+
+#include <array>
+#include <cstdint>
+
+namespace scp::daemon {
+
+struct RecordRow {
+  double t = 0.0;
+  double x = 0.0;
+  double xdot = 0.0;
+  double temperature = 0.0;
+  double voltage = 0.0;          // applied over the interval ending at t (the sample's)
+  double voltage_command = 0.0;  // sent this cycle, held until the next
+  std::array<double, 6> theta_hat{};
+  std::array<double, 6> sigma{};
+  std::array<double, 2> eps{};
+  std::array<double, 2> af{};
+  std::array<double, 2> af_hat{};
+  std::uint8_t state = 0;
+};
+
+}  // namespace scp::daemon
