@@ -1,0 +1,31 @@
+#pragma once
+// Settings of the simulated actuator. Plain data: the daemon's config module declares the YAML
+// keys and fills this struct; SimDriver's constructor validates it.
+
+#include <cstdint>
+#include <string>
+
+#include "drivers/sim/plant_params.hpp"
+
+namespace scp::drivers::sim {
+
+struct SimSettings {
+  PlantParams plant;
+  double ambient_c = 25.0;  // °C; the sensor reports T = T̄ + ambient
+  int substeps = 20;        // RK4 sub-steps per millisecond of simulated time, ≥ 1
+  // Gaussian sensor noise, standard deviation in SI units (m, m/s, °C, V); 0 = none.
+  double noise_x = 0, noise_xdot = 0, noise_temperature = 0, noise_voltage = 0;
+  std::uint64_t seed = 1;    // of the noise generator; the same seed gives the same samples
+  bool measure_xdot = true;  // false: Sample::xdot = NaN (a device without a velocity sensor)
+  using Drift = PlantDrift;  // relative drift per hour of each physical parameter
+  Drift drift;
+  // Fault injection (for end-to-end tests of the daemon's safety): from fault_start_s for
+  // fault_duration_s (0 = forever) the sensor reports this fault.
+  // none | nan_temperature | stuck_position | temperature_out_of_range | read_error | no_data |
+  // stall (see Fault in sim_driver.hpp)
+  std::string fault = "none";
+  double fault_start_s = 0, fault_duration_s = 0;
+  double fault_value_c = 400.0;  // °C reported by temperature_out_of_range
+};
+
+}  // namespace scp::drivers::sim

@@ -1,0 +1,89 @@
+// Configuration: the shipped files load, and every mistake names the key, the line and the range.
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "daemon/config/binder.hpp"
+#include "daemon/config/daemon_config.hpp"
+
+namespace scp::config {
+namespace {
+
+std::string error_of(const std::string& yaml) {
+  try {
+    load_config_text(yaml, "test.yaml");
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+TEST(Config, ShippedFilesLoad) {
+  for (const char* name : {"paper.yaml", "sim.yaml"}) {
+    const auto cfg = load_config_file(std::string(SCP_SOURCE_DIR) + "/config/" + name);
+    EXPECT_EQ(cfg.driver.type, "sim") << name;
+  }
+  const auto paper = load_config_file(std::string(SCP_SOURCE_DIR) + "/config/paper.yaml");
+  EXPECT_EQ(paper.estimator.beta, 3.0);
+  EXPECT_EQ(paper.estimator.forgetting, 0.8);
+  EXPECT_EQ(paper.estimator.p0, 100.0);
+  EXPECT_EQ(paper.excitation.settings.sines.size(), 4U);
+}
+
+TEST(Config, EmptyDocumentGivesDefaults) {
+  const auto cfg = load_config_text("", "empty.yaml");
+  EXPECT_EQ(cfg.loop.period_s, 0.001);
+  EXPECT_EQ(cfg.driver.type, "sim");
+}
+
+TEST(Config, UnknownKeyNamesKeyLineAndAlternatives) {
+  const std::string e = error_of("loop:\n  period_s: 0.001\n  perod: 2\n");
+  EXPECT_NE(e.find("test.yaml:3"), std::string::npos) << e;
+  EXPECT_NE(e.find("unknown key 'loop.perod'"), std::string::npos) << e;
+  EXPECT_NE(e.find("period_s"), std::string::npos) << e;
+}
+
+TEST(Config, OutOfRangeNamesKeyLineAndRange) {
+  const std::string e = error_of("estimator:\n  beta: 0\n");
+  EXPECT_NE(e.find("test.yaml:2"), std::string::npos) << e;
+  EXPECT_NE(e.find("estimator.beta"), std::string::npos) << e;
+  EXPECT_NE(e.find("[0.001, 10000]"), std::string::npos) << e;
+}
+
+TEST(Config, WrongTypesAndBadYamlAreErrors) {
+  EXPECT_NE(error_of("estimator:\n  beta: fast\n").find("'fast' is not a finite number"),
+            std::string::npos);
+  EXPECT_NE(error_of("estimator:\n  beta: .nan\n").find("not a finite number"), std::string::npos);
+  EXPECT_NE(error_of("estimator:\n  theta0: [1, 2]\n").find("list of 6 numbers"),
+            std::string::npos);
+  EXPECT_NE(error_of("driver:\n  type: serial\n").find("one of sim|replay|modbus|can"),
+            std::string::npos);
+  EXPECT_NE(error_of("loop: [1, 2\n").find("not valid YAML"), std::string::npos);
+  EXPECT_NE(error_of("- 1\n- 2\n").find("top level must be a mapping"), std::string::npos);
+  EXPECT_NE(error_of("socket:\n  mode: rw\n").find("octal"), std::string::npos);
+  EXPECT_NE(error_of("excitation:\n  sines:\n    - {amplitude_v: 1, frequency_hz: 0}\n")
+                .find("excitation.sines[0].frequency_hz"),
+            std::string::npos);
+}
+
+TEST(Config, CrossKeyChecks) {
+  EXPECT_NE(error_of("safety: {temperature_min_c: 50, temperature_max_c: 40}\n").find("below"),
+            std::string::npos);
+  EXPECT_NE(error_of("driver: {type: replay}\n").find("driver.replay.file"), std::string::npos);
+  EXPECT_NE(error_of("estimator: {p0: 10, p_max: 1}\n").find("p_max"), std::string::npos);
+}
+
+TEST(Config, ReferenceListsEveryDeclaredKeyOnce) {
+  const std::string ref = config_reference_markdown();
+  for (const char* key : {"`loop.period_s`", "`estimator.beta`", "`excitation.sines[].frequency_hz`",
+                          "`safety.temperature_max_c`", "`socket.path`", "`state.warm_start`",
+                          "`driver.sim.plant.b`"}) {
+    const auto first = ref.find(key);
+    EXPECT_NE(first, std::string::npos) << key;
+    EXPECT_EQ(ref.find(key, first + 1), std::string::npos) << key << " declared twice";
+  }
+}
+
+}  // namespace
+}  // namespace scp::config
