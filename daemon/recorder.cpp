@@ -1,6 +1,7 @@
 #include "daemon/recorder.hpp"
 
 #include <cerrno>
+#include <charconv>
 #include <cstring>
 #include <stdexcept>
 
@@ -45,16 +46,35 @@ void Recorder::run() {
 }
 
 void Recorder::write_row(const RecordRow& r) {
-  // %.17g round-trips every double: a replay of this file reproduces the run bit for bit.
-  const int written = std::fprintf(
-      file_,
-      "%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,"
-      "%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%s\n",
-      r.t, r.x, r.xdot, r.temperature, r.voltage, r.voltage_command, r.theta_hat[0], r.theta_hat[1],
-      r.theta_hat[2], r.theta_hat[3], r.theta_hat[4], r.theta_hat[5], r.sigma[0], r.sigma[1],
-      r.sigma[2], r.sigma[3], r.sigma[4], r.sigma[5], r.eps[0], r.eps[1], r.af[0], r.af[1],
-      r.af_hat[0], r.af_hat[1], to_string(static_cast<RunState>(r.state)));
-  if (written < 0 && write_errno_.load() == 0) write_errno_.store(errno ? errno : EIO);
+  // std::to_chars writes the shortest text that reads back as the same double: a replay of this
+  // file reproduces the run bit for bit, at a fraction of printf's cost.
+  char line[1024];
+  char* out = line;
+  char* const end = line + sizeof line;
+  auto put = [&](double value) {
+    out = std::to_chars(out, end, value).ptr;
+    *out++ = ',';
+  };
+  put(r.t);
+  put(r.x);
+  put(r.xdot);
+  put(r.temperature);
+  put(r.voltage);
+  put(r.voltage_command);
+  for (const double v : r.theta_hat) put(v);
+  for (const double v : r.sigma) put(v);
+  for (const double v : r.eps) put(v);
+  for (const double v : r.af) put(v);
+  for (const double v : r.af_hat) put(v);
+  const char* state = to_string(static_cast<RunState>(r.state));
+  const std::size_t state_length = std::strlen(state);
+  std::memcpy(out, state, state_length);
+  out += state_length;
+  *out++ = '\n';
+  const auto size = static_cast<std::size_t>(out - line);
+  if (std::fwrite(line, 1, size, file_) != size && write_errno_.load() == 0) {
+    write_errno_.store(errno ? errno : EIO);
+  }
   rows_.fetch_add(1, std::memory_order_relaxed);
 }
 

@@ -1,0 +1,40 @@
+// The batch run of the paper's experiment (200 s at 1 kHz through the daemon's loop) as a multiple
+// of real time, with and without recording every cycle to CSV.
+
+#include <benchmark/benchmark.h>
+
+#include <filesystem>
+#include <string>
+
+#include "daemon/batch_run.hpp"
+#include "daemon/config/daemon_config.hpp"
+
+namespace {
+
+void run(benchmark::State& state, bool record) {
+  const auto cfg =
+      scp::config::load_config_file(std::string(SCP_SOURCE_DIR) + "/config/paper.yaml");
+  scp::daemon::BatchOptions options;
+  options.duration_s = 200.0;
+  const auto csv = std::filesystem::temp_directory_path() / "scp-bench-batch.csv";
+  if (record) options.record_path = csv.string();
+  double loop_seconds = 0.0;
+  for (auto _ : state) {
+    const auto summary = scp::daemon::run_batch(cfg, options);
+    loop_seconds += summary["t"].get<double>();
+    benchmark::DoNotOptimize(summary);
+  }
+  // Simulated seconds per wall second: the speed as a multiple of real time.
+  state.counters["x_realtime"] = benchmark::Counter(loop_seconds, benchmark::Counter::kIsRate);
+  if (record) std::filesystem::remove(csv);
+}
+
+void BM_PaperBatch200s(benchmark::State& state) { run(state, false); }
+void BM_PaperBatch200sRecorded(benchmark::State& state) { run(state, true); }
+
+BENCHMARK(BM_PaperBatch200s)->Unit(benchmark::kMillisecond)->Iterations(3)->UseRealTime();
+BENCHMARK(BM_PaperBatch200sRecorded)->Unit(benchmark::kMillisecond)->Iterations(2)->UseRealTime();
+
+}  // namespace
+
+BENCHMARK_MAIN();
