@@ -1,0 +1,76 @@
+#pragma once
+// Settings of the SocketCAN driver: where each quantity sits in which frame, described exactly as
+// a DBC file describes a signal (start bit, length, byte order, sign, factor, offset).
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+namespace scp::drivers::can {
+
+// DBC "@1" is Intel (little endian: start_bit is the least significant bit), "@0" is Motorola
+// (big endian: start_bit is the most significant bit, in the DBC's "bit 7 of byte 0 is bit 7"
+// numbering).
+enum class ByteOrder : std::uint8_t { little_endian, big_endian };
+
+struct CanSignal {
+  bool present = false;
+  std::uint32_t frame_id = 0;  // without CAN_EFF_FLAG
+  bool extended = false;       // 29-bit identifier
+  int dlc = 8;                 // payload bytes of the frame (0..8 classic; FD: up to 64)
+  int start_bit = 0;
+  int length_bits = 16;  // 1..64
+  ByteOrder byte_order = ByteOrder::little_endian;
+  bool is_signed = false;
+  double scale = 1.0;  // physical = raw · scale + offset
+  double offset = 0.0;
+  double stale_timeout_s = 0.05;  // a sensor signal older than this faults the driver
+};
+
+// The frame the driver sends to command the actuator voltage (V).
+struct CanCommand {
+  CanSignal signal;             // layout of the voltage in the command frame (present is ignored)
+  bool send_each_cycle = true;  // false: send only when the encoded value changes
+};
+
+struct CanSettings {
+  std::string interface = "can0";
+  bool fd = false;        // CAN FD (CAN_RAW_FD_FRAMES): frames up to 64 bytes
+  CanSignal x;            // m, required
+  CanSignal xdot;         // m/s, optional (absent: Sample::xdot = NaN)
+  CanSignal temperature;  // °C absolute, required
+  CanSignal voltage;      // V read back, optional (absent: the last command is reported)
+  CanCommand command;
+  int tx_full_fault_after = 10;    // consecutive "transmit queue full" writes before a fault
+  int max_frames_per_cycle = 256;  // bound on the per-cycle drain so a flooded bus cannot stall
+};
+
+// The signal names, in the order the driver keeps them; used in messages and config keys.
+inline constexpr const char* kSignalNames[4] = {"x", "xdot", "temperature", "voltage"};
+
+// Pointers to the four sensor signals in kSignalNames order.
+inline const CanSignal* signal_at(const CanSettings& s, int i) noexcept {
+  const CanSignal* all[4] = {&s.x, &s.xdot, &s.temperature, &s.voltage};
+  return all[i];
+}
+inline CanSignal* signal_at(CanSettings& s, int i) noexcept {
+  CanSignal* all[4] = {&s.x, &s.xdot, &s.temperature, &s.voltage};
+  return all[i];
+}
+
+// The first problem found in the settings: `key` is the config key relative to the can section
+// ("x.start_bit"), `message` says what is wrong and what would be right.
+struct SettingsProblem {
+  std::string key;
+  std::string message;
+};
+
+// Checks ranges and the cross-signal rules: identifiers within 11/29 bits, every signal inside its
+// frame, signals of one frame agreeing on its length and not sharing bits, the command frame id
+// distinct from every sensor frame id, x and temperature present, scale finite and non-zero.
+std::optional<SettingsProblem> validate_can_settings(const CanSettings& s);
+
+// A default layout that the example config, the simulated node and the tests share.
+CanSettings default_can_settings();
+
+}  // namespace scp::drivers::can

@@ -1,0 +1,67 @@
+#pragma once
+// The simulated SCP actuator served as a CAN node, for scp-simdaq --transport can and for tests:
+// each period it takes the latest voltage command frame, advances a sim::SimDriver one period and
+// sends the sensor frames laid out by the same CanSettings the daemon's driver decodes.
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <vector>
+
+#include "drivers/can/can_channel.hpp"
+#include "drivers/can/can_settings.hpp"
+#include "drivers/sim/sim_driver.hpp"
+#include "drivers/sim/sim_settings.hpp"
+
+namespace scp::drivers::can {
+
+struct CanSimNodeCounters {
+  std::uint64_t commands = 0;  // command frames decoded
+  std::uint64_t frames_sent = 0;
+  std::uint64_t send_failures = 0;  // the daemon is not reading: frames lost
+  std::uint64_t ignored = 0;        // frames that were not the command
+  std::uint64_t sim_errors = 0;     // read errors injected by the simulation's fault settings
+};
+
+class CanSimNode {
+ public:
+  // Throws DriverError on invalid settings (CAN or simulation).
+  CanSimNode(const CanSettings& can, const sim::SimSettings& sim, CanChannel channel);
+
+  // One period ending at loop time t: apply the command received since the last step (a DAC
+  // holds it over the interval), advance the plant to t, send the sensor frames.
+  void step(double t, double period) noexcept;
+
+  // Tests: stop sending sensor frames (a silent node) without stopping the plant.
+  void set_silent(bool silent) noexcept { silent_ = silent; }
+  // Sends a raw frame (tests inject error frames or malformed payloads through the node).
+  bool send_raw(const canfd_frame& f, bool is_fd) noexcept;
+
+  double voltage() const noexcept { return voltage_; }
+  const sim::SimDriver& sim() const noexcept { return sim_; }
+  const CanSimNodeCounters& counters() const noexcept { return counters_; }
+
+ private:
+  struct Frame {
+    canfd_frame frame{};
+    std::array<int, 4> signals{};  // indices into kSignalNames
+    int n_signals = 0;
+  };
+
+  CanSettings can_;
+  sim::SimDriver sim_;
+  CanChannel channel_;
+  std::vector<Frame> frames_;  // built once in the constructor
+  double voltage_ = 0.0;
+  bool silent_ = false;
+  CanSimNodeCounters counters_;
+};
+
+// Serves the node in real time until `stop` becomes true: one step per period_s on absolute
+// deadlines (CLOCK_MONOTONIC). fd ≥ 0: an inherited descriptor carrying can_frame records (taken
+// over and closed on return); fd < 0: a CAN_RAW socket on can.interface. Returns 0 on a clean
+// stop, 1 on an error (message on stderr).
+int run_can_sim_node(const CanSettings& can, const sim::SimSettings& sim, double period_s, int fd,
+                     std::atomic<bool>& stop);
+
+}  // namespace scp::drivers::can
