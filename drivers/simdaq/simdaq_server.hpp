@@ -1,0 +1,45 @@
+#pragma once
+// The simulated DAQ: drivers/sim's actuator advanced in real time and served over Modbus TCP or
+// RTU with exactly the register map a ModbusSettings describes, so the daemon's Modbus driver
+// (and any Modbus tool) sees what a real DAQ in front of an SCP would show.
+
+#include <atomic>
+#include <cstdint>
+#include <string>
+
+#include "drivers/modbus/modbus_settings.hpp"
+#include "drivers/sample.hpp"
+#include "drivers/sim/sim_settings.hpp"
+
+struct _modbus_mapping_t;
+
+namespace scp::drivers::simdaq {
+
+struct SimDaqOptions {
+  modbus::ModbusSettings map;  // transport, endpoint and register map
+  sim::SimSettings sim;
+  double period_s = 0.001;
+  double fault_after_s = -1.0;      // ≥ 0: from then on requests are read and not answered
+  double exception_after_s = -1.0;  // ≥ 0: from then on requests get exception replies
+  int exception_code = 4;           // server device failure
+  double duration_s = 0.0;          // > 0: exit after this long (tests)
+};
+
+// Writes one sample into the register image (input/holding arrays of the mapping).
+// Signals that are not present are skipped; values that do not fit their type are written as 0
+// (int types) — the caller counts them. Returns false when any present value did not fit.
+bool encode_sample(const modbus::ModbusSettings& map, const Sample& sample,
+                   std::uint16_t* input_registers, int n_input, std::uint16_t* holding_registers,
+                   int n_holding) noexcept;
+
+// The voltage the command register holds, clamped to [command.min, command.max]; 0 when it is
+// not a finite number.
+double decode_command(const modbus::CommandRegister& command,
+                      const std::uint16_t* holding_registers) noexcept;
+
+// Serves until `stop` is true (or duration_s elapsed). Prints one line
+// "scp-simdaq: listening on HOST:PORT" (TCP, with the port actually bound when 0 was asked) or
+// "scp-simdaq: serving DEVICE" (RTU) to stdout once ready. Returns the process exit code.
+int serve_modbus(const SimDaqOptions& options, std::atomic<bool>& stop);
+
+}  // namespace scp::drivers::simdaq
