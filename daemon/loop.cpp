@@ -62,13 +62,10 @@ CycleResult Loop::cycle(const drivers::CycleTime& now) noexcept {
   }
   driver_ok_ = read.status != drivers::IoStatus::error;
   if (read.status == drivers::IoStatus::error) {
-    enter_fault(read.reason[0] ? read.reason : "driver read failed");
+    enter_fault(FaultKind::driver, read.reason[0] ? read.reason : "driver read failed");
   } else if (read.status == drivers::IoStatus::ok) {
-    // ẋ from x when the device does not measure it (filtered differentiator, daemon/velocity).
-    if (!std::isfinite(sample.xdot) && std::isfinite(sample.x)) {
-      const double dt = have_fresh_ ? sample.t - last_velocity_t_ : 0.0;
-      sample.xdot = velocity_.update(sample.x, dt);
-      last_velocity_t_ = sample.t;
+    if (xdot_ == Xdot::unknown) {
+      xdot_ = std::isfinite(sample.xdot) ? Xdot::measured : Xdot::estimated;
     }
     sample_ = sample;
     sample_fresh_ = true;
@@ -79,8 +76,8 @@ CycleResult Loop::cycle(const drivers::CycleTime& now) noexcept {
   // 2. Safety: limits on the sample and staleness, independent of the estimator.
   if (sample_fresh_) {
     Reason why{};
-    sample_valid_ = check_sample(sample_, config_.safety, /*xdot_required=*/true, why);
-    if (!sample_valid_) enter_fault(why);
+    sample_valid_ = check_sample(sample_, config_.safety, xdot_ == Xdot::measured, why);
+    if (!sample_valid_) enter_fault(FaultKind::value, why);
   } else if (state_ != RunState::fault) {
     const double age = have_fresh_ ? now.t - last_fresh_t_ : now.t;
     if (age > config_.safety.stale_timeout_s) {
@@ -88,18 +85,20 @@ CycleResult Loop::cycle(const drivers::CycleTime& now) noexcept {
       std::snprintf(why.data(), why.size(),
                     "no fresh reading for %.3f s (safety.stale_timeout_s = %.3f s)", age,
                     config_.safety.stale_timeout_s);
-      enter_fault(why);
+      enter_fault(FaultKind::driver, why);
     }
   }
+  try_recover(now);
   if (state_ == RunState::starting && sample_fresh_ && sample_valid_ && driver_ok_) {
     state_ = RunState::running;  // fresh readings arrived: the output may leave 0 V
   }
 
   // 3. Estimate. The estimator rejects non-finite and out-of-range samples by itself.
-  if (sample_fresh_) {
-    const estimator::Measurement m{sample_.t, sample_.x, sample_.xdot,
-                                   sample_.temperature - config_.actuator.ambient_c,
-                                   sample_.voltage};
+  drivers::Sample fed;
+  const bool feed = sample_fresh_ && estimator_input(fed);
+  if (feed) {
+    const estimator::Measurement m{fed.t, fed.x, fed.xdot,
+                                   fed.temperature - config_.actuator.ambient_c, fed.voltage};
     estimator_.update(m);
     if (cycles_ % kStatePublishCycles == 0) estimator_state_.store(to_view(estimator_.state()));
   }
@@ -114,7 +113,7 @@ CycleResult Loop::cycle(const drivers::CycleTime& now) noexcept {
   if (state_ == RunState::running) {
     const drivers::IoResult written = driver_.write_voltage(command);
     if (written.status == drivers::IoStatus::error) {
-      enter_fault(written.reason[0] ? written.reason : "driver write failed");
+      enter_fault(FaultKind::driver, written.reason[0] ? written.reason : "driver write failed");
       command = 0.0;
     }
   } else {
@@ -125,7 +124,7 @@ CycleResult Loop::cycle(const drivers::CycleTime& now) noexcept {
 
   // 7. Publish.
   publish(now);
-  if (record_ != nullptr && sample_fresh_) record();
+  if (record_ != nullptr && feed) record(fed);
   return CycleResult::ok;
 }
 
@@ -139,6 +138,8 @@ void Loop::handle_commands(const drivers::CycleTime& now) noexcept {
       case CommandKind::reset:
         estimator_.reset();
         velocity_.reset();
+        velocity_started_ = false;
+        central_difference_.reset();
         set_reason(ack_.message, "estimator restarted from its initial values");
         break;
       case CommandKind::excitation_on:
@@ -183,18 +184,43 @@ bool Loop::cause_gone(Reason& why) const noexcept {
   return check_sample(sample_, config_.safety, true, why);
 }
 
-void Loop::enter_fault(const char* reason) noexcept {
+void Loop::enter_fault(FaultKind kind, const char* reason) noexcept {
   Reason r{};
   set_reason(r, reason);
-  enter_fault(r);
+  enter_fault(kind, r);
 }
 
-void Loop::enter_fault(const Reason& reason) noexcept {
+void Loop::enter_fault(FaultKind kind, const Reason& reason) noexcept {
   if (state_ == RunState::stopping) return;
-  if (state_ != RunState::fault) fault_reason_ = reason;  // keep the first cause
+  if (state_ != RunState::fault) {
+    fault_reason_ = reason;  // keep the first cause
+    fault_kind_ = kind;
+  } else if (kind == FaultKind::value && fault_kind_ == FaultKind::driver) {
+    fault_reason_ = reason;  // a bad value while the link was down: now it must latch
+    fault_kind_ = kind;
+  }
+  healthy_since_ = -1.0;
   state_ = RunState::fault;
   driver_.safe_state();  // 0 V in the same cycle
   voltage_command_ = 0.0;
+}
+
+void Loop::try_recover(const drivers::CycleTime& now) noexcept {
+  if (state_ != RunState::fault || fault_kind_ != FaultKind::driver ||
+      config_.safety.recover_after_s <= 0.0) {
+    return;
+  }
+  if (!(sample_fresh_ && sample_valid_ && driver_ok_)) {
+    if (!sample_fresh_ && driver_ok_) return;  // a quiet cycle neither helps nor hurts
+    healthy_since_ = -1.0;
+    return;
+  }
+  if (healthy_since_ < 0.0) healthy_since_ = now.t;
+  if (now.t - healthy_since_ >= config_.safety.recover_after_s) {
+    state_ = RunState::starting;  // the next fresh reading makes it RUNNING
+    set_reason(fault_reason_, "");
+    healthy_since_ = -1.0;
+  }
 }
 
 void Loop::shutdown() noexcept {
@@ -238,14 +264,34 @@ void Loop::publish(const drivers::CycleTime& now) noexcept {
   published_.store(out);
 }
 
-void Loop::record() noexcept {
+// What the estimator sees of this cycle's fresh sample: the sample itself when ẋ is measured;
+// otherwise with ẋ estimated from x, either delay-matched (central difference: the previous
+// sample, one cycle late) or through the causal filtered differentiator.
+bool Loop::estimator_input(drivers::Sample& fed) noexcept {
+  if (xdot_ == Xdot::measured) {
+    fed = sample_;
+    return true;
+  }
+  if (config_.driver.velocity.method == "central_difference") {
+    return central_difference_.push(sample_, fed);
+  }
+  fed = sample_;
+  const double dt = velocity_started_ ? sample_.t - last_velocity_t_ : 0.0;
+  fed.xdot = velocity_.update(sample_.x, dt);
+  last_velocity_t_ = sample_.t;
+  velocity_started_ = true;
+  return true;
+}
+
+// The row holds exactly what the estimator was fed, so replaying the file reproduces the run.
+void Loop::record(const drivers::Sample& fed) noexcept {
   const estimator::Estimate& e = estimator_.estimate();
   RecordRow row;
-  row.t = sample_.t;
-  row.x = sample_.x;
-  row.xdot = sample_.xdot;
-  row.temperature = sample_.temperature;
-  row.voltage = sample_.voltage;
+  row.t = fed.t;
+  row.x = fed.x;
+  row.xdot = fed.xdot;
+  row.temperature = fed.temperature;
+  row.voltage = fed.voltage;
   row.voltage_command = voltage_command_;
   row.theta_hat = to_array<6>(e.theta_hat);
   row.sigma = to_array<6>(e.sigma);

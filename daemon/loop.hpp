@@ -14,6 +14,7 @@
 #include "daemon/rt/seqlock.hpp"
 #include "daemon/rt/spsc_ring.hpp"
 #include "daemon/safety.hpp"
+#include "daemon/velocity/central_difference.hpp"
 #include "daemon/velocity/velocity_estimator.hpp"
 #include "drivers/driver.hpp"
 #include "estimator/estimator.hpp"
@@ -57,10 +58,16 @@ class Loop {
 
  private:
   void handle_commands(const drivers::CycleTime& now) noexcept;
-  void enter_fault(const char* reason) noexcept;
-  void enter_fault(const Reason& reason) noexcept;
+  // A driver fault (failed transaction, lost link, stale data) clears by itself once fresh valid
+  // readings have flowed for safety.recover_after_s; a value fault (non-finite reading, a limit
+  // exceeded) latches until clear-fault.
+  enum class FaultKind : std::uint8_t { driver, value };
+  void enter_fault(FaultKind kind, const char* reason) noexcept;
+  void enter_fault(FaultKind kind, const Reason& reason) noexcept;
+  void try_recover(const drivers::CycleTime& now) noexcept;
   void publish(const drivers::CycleTime& now) noexcept;
-  void record() noexcept;
+  void record(const drivers::Sample& fed) noexcept;
+  bool estimator_input(drivers::Sample& fed) noexcept;
   bool cause_gone(Reason& why) const noexcept;
 
   const config::DaemonConfig& config_;
@@ -73,11 +80,17 @@ class Loop {
   estimator::Estimator estimator_;
   excitation::Excitation excitation_;
   velocity::VelocityEstimator velocity_;
+  velocity::CentralDifference central_difference_;
+  // Decided by the first fresh sample: does the device measure ẋ? If it does, a later NaN ẋ is a
+  // sensor fault; if not, ẋ is estimated from x (driver.velocity.method).
+  enum class Xdot : std::uint8_t { unknown, measured, estimated } xdot_ = Xdot::unknown;
   EstimatorStateCell estimator_state_;
   bool physical_known_;
 
   RunState state_ = RunState::starting;
   Reason fault_reason_{};
+  FaultKind fault_kind_ = FaultKind::driver;
+  double healthy_since_ = -1.0;  // loop time since which a driver fault's cause has been gone
   bool excitation_enabled_;
   drivers::Sample sample_{};
   bool sample_fresh_ = false;      // this cycle's read delivered a new, valid sample
@@ -85,6 +98,7 @@ class Loop {
   double last_fresh_t_ = 0.0;      // loop time of the last fresh sample
   bool have_fresh_ = false;
   double last_velocity_t_ = 0.0;
+  bool velocity_started_ = false;
   bool driver_ok_ = true;
   double voltage_command_ = 0.0;
   CommandAck ack_{};

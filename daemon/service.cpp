@@ -44,6 +44,8 @@ struct LoopThread {
   std::string setup_error;
 
   void run() noexcept {
+    const auto period = std::chrono::nanoseconds(
+        static_cast<std::int64_t>(std::llround(config.loop.period_s * 1e9)));
     try {
       rt_warnings = rt::apply_rt_settings(config.loop.realtime);
     } catch (const std::exception& e) {
@@ -51,8 +53,7 @@ struct LoopThread {
       setup_failed.store(true, std::memory_order_release);
       return;
     }
-    const auto period = std::chrono::nanoseconds(
-        static_cast<std::int64_t>(std::llround(config.loop.period_s * 1e9)));
+    // period_s is validated to [1e-4, 1] s by the config, so the timer cannot refuse it.
     rt::PeriodicTimer timer(period);
     rt::LoopStatsAccumulator stats;
     rt::WatchdogPacer pacer(notifier.watchdog_interval(), period);

@@ -30,6 +30,7 @@ struct ActuatorSettings {
 };
 
 struct VelocitySettings {
+  std::string method = "central_difference";  // or "filtered"
   double bandwidth_hz = 20.0;
   double damping = 0.7071;
 };
@@ -60,6 +61,7 @@ struct SafetySettings {
   double temperature_min_c = -20.0;
   double position_abs_max_m = 0.05;
   double stale_timeout_s = 0.02;  // no fresh reading for this long is a fault
+  double recover_after_s = 2.0;   // a driver fault clears after this long healthy; 0 = latch
 };
 
 struct SocketSettings {

@@ -110,6 +110,10 @@ void declare_driver(Binder driver, DriverSelection& out, const ActuatorSettings&
   Binder can = driver.section("can", "a SocketCAN device (type: can)");
   declare_can_keys(can, out.can);
   Binder velocity = driver.section("velocity", "ẋ estimated from x when the device has no ẋ");
+  velocity.choice("method", out.velocity.method, "central_difference",
+                  {"central_difference", "filtered"},
+                  "central_difference: 3-point derivative, every signal delayed one sample to "
+                  "match (no bias); filtered: causal differentiator whose lag biases θ1..θ4");
   velocity.number("bandwidth_hz", out.velocity.bandwidth_hz, 20.0, 0.01, 1e4,
                   "bandwidth of the filtered differentiator (lag ≈ 2ζ/ωc)");
   velocity.number("damping", out.velocity.damping, 0.7071, 0.1, 5.0,
@@ -121,7 +125,7 @@ void declare_estimator(Binder est, estimator::EstimatorConfig& out) {
   est.number("forgetting", out.forgetting, 0.8, 1e-6, 1e3, "forgetting rate λP in 1/s, eq. (25)");
   est.number("p0", out.p0, 100.0, 1e-12, 1e30,
              "P(0) = p0·diag(scale)²; the paper: 100 with scale all 1");
-  est.number("p_max", out.p_max, 1e12, 1e-12, 1e30,
+  est.number("p_max", out.p_max, 1e10, 1e-12, 1e30,
              "bound on P (scaled coordinates): forgetting never drains information below 1/p_max");
   std::vector<double> theta0;
   est.numbers("theta0", theta0, {0, 0, 0, 0, 0, 0}, 6, -1e9, 1e9,
@@ -187,6 +191,10 @@ void declare_safety(Binder safety, SafetySettings& out) {
                 "|x| above this is a fault");
   safety.number("stale_timeout_s", out.stale_timeout_s, 0.02, 1e-4, 60.0,
                 "no fresh reading for this long is a fault");
+  safety.number("recover_after_s", out.recover_after_s, 2.0, 0.0, 3600.0,
+                "a driver fault (failed transaction, lost link, stale data) clears by itself "
+                "after this long with fresh valid readings; 0 = latch it. Limit and sensor-value "
+                "faults always latch until clear-fault");
 }
 
 void declare_socket(Binder socket, SocketSettings& out) {

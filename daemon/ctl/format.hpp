@@ -1,0 +1,16 @@
+#pragma once
+// Human-readable views of STATUS and ESTIMATE objects for scp-estimatorctl (--json prints them
+// raw).
+
+#include <nlohmann/json.hpp>
+#include <string>
+
+namespace scp::daemon::ctl {
+
+std::string format_status(const nlohmann::json& status);
+// A table: parameter, θ̂, σ, and θ / rel. error when present; physical parameters when present.
+std::string format_estimate(const nlohmann::json& estimate);
+// One line per ESTIMATE for `watch`.
+std::string format_estimate_line(const nlohmann::json& estimate);
+
+}  // namespace scp::daemon::ctl

@@ -1,0 +1,46 @@
+#pragma once
+// The socket API server (docs/protocol.md). One thread multiplexes every client with epoll; it
+// reads the loop's snapshots from a Seqlock and hands commands to the loop through an SpscRing, so
+// the real-time loop never waits for it. Clients that misbehave are cut off; they cannot stall
+// others.
+
+#include <cstddef>
+#include <memory>
+
+#include "daemon/published_state.hpp"
+#include "daemon/rt/seqlock.hpp"
+#include "daemon/rt/spsc_ring.hpp"
+#include "daemon/server/peer_auth.hpp"
+#include "daemon/server/settings.hpp"
+
+namespace scp::daemon::server {
+
+inline constexpr std::size_t kCommandRingSize = 64;
+using CommandRing = rt::SpscRing<Command, kCommandRingSize>;
+
+class ApiServer {
+ public:
+  // `state` and `commands` must outlive the server. The server is the ring's only producer.
+  ApiServer(ServerSettings settings, ServerInfo info, const rt::Seqlock<PublishedState>& state,
+            CommandRing& commands);
+  ~ApiServer();  // stop()s
+  ApiServer(const ApiServer&) = delete;
+  ApiServer& operator=(const ApiServer&) = delete;
+
+  // Binds the socket (replacing a stale socket file, refusing when another live daemon answers on
+  // it), applies mode and group, and spawns the server thread. Throws std::runtime_error whose
+  // message names the path and the remedy.
+  void start();
+  // Closes every client, joins the thread and removes the socket file. Idempotent.
+  void stop() noexcept;
+
+  // Clients connected now (for tests and the daemon's own diagnostics).
+  std::size_t client_count() const noexcept;
+  const AuthPolicy& auth_policy() const noexcept;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace scp::daemon::server
