@@ -316,6 +316,20 @@ DaemonConfig load_config_text(const std::string& text, const std::string& name) 
   return load_node(parse_yaml(text, name), name);
 }
 
+namespace {
+
+// A '|' inside a cell would end it.
+std::string cell(const std::string& text) {
+  std::string out;
+  for (const char c : text) {
+    if (c == '|') out += '\\';
+    out += c;
+  }
+  return out;
+}
+
+}  // namespace
+
 std::string config_reference_markdown() {
   DaemonConfig defaults;
   Binder doc = Binder::documenting();
@@ -330,8 +344,8 @@ std::string config_reference_markdown() {
       out << "| **" << key.path << "** | section | | | " << key.doc << " |\n";
       continue;
     }
-    out << "| `" << key.path << "` | " << key.type << " | " << key.deflt << " | " << key.range
-        << " | " << key.doc << " |\n";
+    out << "| `" << key.path << "` | " << cell(key.type) << " | " << cell(key.deflt) << " | "
+        << cell(key.range) << " | " << cell(key.doc) << " |\n";
   }
   return out.str();
 }

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <fstream>
+#include <sstream>
 #include <string>
 
 #include "daemon/config/binder.hpp"
@@ -83,6 +85,23 @@ TEST(Config, ReferenceListsEveryDeclaredKeyOnce) {
     EXPECT_NE(first, std::string::npos) << key;
     EXPECT_EQ(ref.find(key, first + 1), std::string::npos) << key << " declared twice";
   }
+}
+
+}  // namespace
+}  // namespace scp::config
+
+namespace scp::config {
+namespace {
+
+// docs/configuration.md is the reference's output, so the documentation cannot go stale.
+TEST(Config, DocumentationMatchesTheDeclarations) {
+  std::ifstream in(std::string(SCP_SOURCE_DIR) + "/docs/configuration.md");
+  ASSERT_TRUE(in) << "docs/configuration.md is missing";
+  std::stringstream text;
+  text << in.rdbuf();
+  EXPECT_EQ(text.str(), config_reference_markdown())
+      << "docs/configuration.md is stale: regenerate it with\n"
+         "  build/daemon/scp-estimatord --print-config-reference > docs/configuration.md";
 }
 
 }  // namespace
