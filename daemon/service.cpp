@@ -14,6 +14,7 @@
 
 #include "daemon/driver_factory.hpp"
 #include "daemon/loop.hpp"
+#include "daemon/rt/alloc_hook.hpp"
 #include "daemon/rt/loop_stats.hpp"
 #include "daemon/rt/periodic_timer.hpp"
 #include "daemon/rt/rt_setup.hpp"
@@ -57,12 +58,20 @@ struct LoopThread {
     rt::PeriodicTimer timer(period);
     rt::LoopStatsAccumulator stats;
     rt::WatchdogPacer pacer(notifier.watchdog_interval(), period);
+    // From here on the thread must not allocate; the benchmark build counts it (alloc_hook.hpp).
+    const std::int64_t allocations_at_start = rt::thread_allocation_count();
     timer.start();
     started.store(true, std::memory_order_release);
     while (!stop.load(std::memory_order_acquire)) {
       const rt::WakeResult wake = timer.wait_next();
       stats.record_wake(wake);
-      loop.set_loop_statistics(stats.snapshot());
+      LoopStatistics loop_stats = stats.snapshot();
+      if (allocations_at_start >= 0) {
+        loop_stats.allocations_counted = true;
+        loop_stats.allocations =
+            static_cast<std::uint64_t>(rt::thread_allocation_count() - allocations_at_start);
+      }
+      loop.set_loop_statistics(loop_stats);
       const drivers::CycleTime now{static_cast<double>(wake.cycle) * config.loop.period_s,
                                    config.loop.period_s};
       loop.cycle(now);
@@ -147,6 +156,18 @@ int run_service(const config::DaemonConfig& cfg) {
 
   LoopThread body{*loop, notifier, cfg, {}, {}, {}, {}, {}};
   std::thread loop_thread([&body] { body.run(); });
+  // Whatever way this function is left (an exception included), the loop stops and the output
+  // goes to 0 V before the driver is destroyed.
+  struct StopGuard {
+    LoopThread& body;
+    std::thread& thread;
+    drivers::Driver& driver;
+    ~StopGuard() {
+      body.stop.store(true, std::memory_order_release);
+      if (thread.joinable()) thread.join();
+      driver.safe_state();
+    }
+  } stop_guard{body, loop_thread, *driver};
 
   // Wait for the loop to publish its first cycle before telling systemd we are ready.
   while (!body.started.load(std::memory_order_acquire) &&
