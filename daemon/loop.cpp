@@ -77,6 +77,11 @@ CycleResult Loop::cycle(const drivers::CycleTime& now) noexcept {
   if (sample_fresh_) {
     Reason why{};
     sample_valid_ = check_sample(sample_, config_.safety, xdot_ == Xdot::measured, why);
+    // voltage_command_ is still last cycle's command: the one the plant saw up to this reading.
+    if (sample_valid_ && !stuck_.update(sample_, now.t, voltage_command_ != 0.0,
+                                        config_.safety.stuck_timeout_s, why)) {
+      sample_valid_ = false;
+    }
     if (!sample_valid_) enter_fault(FaultKind::value, why);
   } else if (state_ != RunState::fault) {
     const double age = have_fresh_ ? now.t - last_fresh_t_ : now.t;

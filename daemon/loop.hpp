@@ -87,6 +87,7 @@ class Loop {
   EstimatorStateCell estimator_state_;
   bool physical_known_;
 
+  StuckDetector stuck_;
   RunState state_ = RunState::starting;
   Reason fault_reason_{};
   FaultKind fault_kind_ = FaultKind::driver;

@@ -28,10 +28,15 @@ struct LoopStatistics {
   std::uint64_t missed_periods = 0;    // periods skipped to resynchronise after an overrun
   double lateness_min_us = 0.0;
   double lateness_mean_us = 0.0;
+  double lateness_p50_us = 0.0;        // from the histogram
   double lateness_p99_us = 0.0;        // from the histogram
   double lateness_max_us = 0.0;
   double exec_mean_us = 0.0;
   double exec_max_us = 0.0;
+  // Heap allocations by the loop thread since its real-time set-up; counted only in the
+  // benchmark build (scp-estimatord-alloccount, bench/), where they must stay 0.
+  bool allocations_counted = false;
+  std::uint64_t allocations = 0;
   // Lateness histogram: bin i counts wake-ups late by [edge(i), edge(i+1)) µs, edges logarithmic
   // (0, 1, 2, 4, ... µs); the last bin is open-ended.
   std::array<std::uint64_t, kHistogramBins> lateness_histogram{};

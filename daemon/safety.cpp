@@ -1,6 +1,8 @@
 #include "daemon/safety.hpp"
 
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 
@@ -61,6 +63,28 @@ bool check_sample(const drivers::Sample& s, const config::SafetySettings& limits
 double clamp_voltage(double requested, const config::SafetySettings& limits) noexcept {
   if (!std::isfinite(requested) || requested <= 0.0) return 0.0;
   return requested > limits.voltage_max_v ? limits.voltage_max_v : requested;
+}
+
+bool StuckDetector::update(const drivers::Sample& s, double t, bool output_nonzero,
+                           double timeout_s, Reason& reason) noexcept {
+  if (!(timeout_s > 0.0)) return true;
+  // Bit patterns, not ==: a sensor toggling between 0.0 and -0.0 or repeating NaN is stuck too.
+  const bool same =
+      have_ && std::bit_cast<std::uint64_t>(s.x) == std::bit_cast<std::uint64_t>(x_) &&
+      std::bit_cast<std::uint64_t>(s.temperature) == std::bit_cast<std::uint64_t>(temperature_);
+  if (!same || !output_nonzero) {
+    have_ = true;
+    x_ = s.x;
+    temperature_ = s.temperature;
+    since_ = t;
+    return true;
+  }
+  if (t - since_ < timeout_s) return true;
+  std::snprintf(reason.data(), reason.size(),
+                "sensor stuck: x and T unchanged for %.3g s with the output on "
+                "(safety.stuck_timeout_s = %.3g s)",
+                t - since_, timeout_s);
+  return false;
 }
 
 }  // namespace scp::daemon

@@ -24,4 +24,23 @@ double clamp_voltage(double requested, const config::SafetySettings& limits) noe
 
 void set_reason(Reason& reason, const char* text) noexcept;
 
+// A sensor that has died often keeps repeating its last value instead of reporting an error. While
+// a non-zero voltage is commanded the plant moves and a live sensor's x and T change at least in
+// their last bits, so readings bit-identical for safety.stuck_timeout_s mean a stuck sensor.
+// At 0 V a resting actuator may legitimately read constant values: the timer restarts.
+class StuckDetector {
+ public:
+  // False (with `reason`) once x and T have been bit-identical for `timeout_s` of loop time while
+  // `output_nonzero`. timeout_s ≤ 0 disables the check. Real-time safe.
+  bool update(const drivers::Sample& sample, double t, bool output_nonzero, double timeout_s,
+              Reason& reason) noexcept;
+  void reset() noexcept { have_ = false; }
+
+ private:
+  bool have_ = false;
+  double x_ = 0.0;
+  double temperature_ = 0.0;
+  double since_ = 0.0;  // loop time since which the reading has not changed
+};
+
 }  // namespace scp::daemon

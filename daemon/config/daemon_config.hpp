@@ -62,6 +62,7 @@ struct SafetySettings {
   double position_abs_max_m = 0.05;
   double stale_timeout_s = 0.02;  // no fresh reading for this long is a fault
   double recover_after_s = 2.0;   // a driver fault clears after this long healthy; 0 = latch
+  double stuck_timeout_s = 0.0;   // x and T bit-identical this long at non-zero output; 0 = off
 };
 
 struct SocketSettings {

@@ -10,6 +10,7 @@
 #include "daemon/config/daemon_config.hpp"
 #include "daemon/config/keys_can.hpp"
 #include "daemon/config/keys_modbus.hpp"
+#include "drivers/modbus/timing.hpp"
 #include "drivers/sim/sim_driver.hpp"
 #include "excitation/excitation.hpp"
 
@@ -88,8 +89,8 @@ void declare_sim(Binder sim, drivers::sim::SimSettings& out) {
   drift.number("alpha2", d.alpha2, 0.0, -10.0, 10.0, "of α2, per hour");
   Binder fault = sim.section("fault", "fault injection, for tests of the safety layer");
   fault.choice("kind", out.fault, "none",
-               {"none", "nan_temperature", "stuck_position", "temperature_out_of_range",
-                "read_error", "no_data", "stall"},
+               {"none", "nan_temperature", "inf_position", "stuck_position", "stuck_sensor",
+                "temperature_out_of_range", "read_error", "no_data", "stall"},
                "sensor fault to inject");
   fault.number("start_s", out.fault_start_s, 0.0, 0.0, kHuge, "loop time at which it begins");
   fault.number("duration_s", out.fault_duration_s, 0.0, 0.0, kHuge, "how long (0 = forever)");
@@ -195,6 +196,9 @@ void declare_safety(Binder safety, SafetySettings& out) {
                 "a driver fault (failed transaction, lost link, stale data) clears by itself "
                 "after this long with fresh valid readings; 0 = latch it. Limit and sensor-value "
                 "faults always latch until clear-fault");
+  safety.number("stuck_timeout_s", out.stuck_timeout_s, 0.0, 0.0, 3600.0,
+                "x and T bit-identical for this long while the output is non-zero is a sensor "
+                "fault (a dead sensor repeating its last value); latches. 0 = off");
 }
 
 void declare_socket(Binder socket, SocketSettings& out) {
@@ -260,6 +264,9 @@ void cross_check(const Binder& root, DaemonConfig& cfg) {
     estimator::Estimator probe(est);
     excitation::validate(cfg.excitation.settings);
     if (cfg.driver.type == "sim") drivers::sim::SimDriver probe_sim(cfg.driver.sim);
+    // The timing budget, so that --check-config refuses it too, not only the driver's open().
+    if (cfg.driver.type == "modbus")
+      drivers::modbus::check_timing(cfg.driver.modbus, cfg.loop.period_s);
   } catch (const std::exception& e) {
     throw ConfigError(cfg.source + ": " + e.what());
   }

@@ -45,7 +45,9 @@ void declare_layout(Binder& b, CanSignal& sig, const CanSignal& def) {
 void declare_can_keys(Binder& can_section, CanSettings& out) {
   const CanSettings def = drivers::can::default_can_settings();
   can_section.text("interface", out.interface, def.interface,
-                   "SocketCAN interface (`ip link show type can`), e.g. can0 or vcan0");
+                   "SocketCAN interface (`ip link show type can`), e.g. can0 or vcan0; fd:N uses "
+                   "descriptor N inherited from the parent process (a socket carrying can_frame "
+                   "records, e.g. one end of a socketpair)");
   can_section.boolean("fd", out.fd, def.fd,
                       "CAN FD (frames up to 64 bytes; the interface must "
                       "be configured with `fd on`)");
@@ -54,6 +56,10 @@ void declare_can_keys(Binder& can_section, CanSettings& out) {
                       "consecutive cycles with a full transmit queue before a fault");
   can_section.integer("max_frames_per_cycle", max_frames, def.max_frames_per_cycle, 1, 100000,
                       "bound on the frames read per cycle, so a flooded bus cannot stall the loop");
+  can_section.number("read_wait_s", out.read_wait_s, def.read_wait_s, 0.0, 10.0,
+                     "s read() may wait for a new value of every sensor signal; 0 (real time) "
+                     "never waits. Set it (e.g. 1) for --offline runs against scp-simdaq "
+                     "--lockstep, whose node answers each command with one period of frames");
   out.tx_full_fault_after = static_cast<int>(tx_full);
   out.max_frames_per_cycle = static_cast<int>(max_frames);
 

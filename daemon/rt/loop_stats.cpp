@@ -62,12 +62,15 @@ void LoopStatsAccumulator::fill(daemon::LoopStatistics& out) const noexcept {
   out.lateness_mean_us =
       stats_.cycles ? lateness_sum_us_ / static_cast<double>(stats_.cycles) : 0.0;
   out.exec_mean_us = exec_count_ ? exec_sum_us_ / static_cast<double>(exec_count_) : 0.0;
-  out.lateness_p99_us = 0.0;
-  if (stats_.cycles == 0) return;
+  out.lateness_p50_us = percentile(0.50);
+  out.lateness_p99_us = percentile(0.99);
+}
 
-  // Rank of the 99th percentile among the samples, as a continuous position in [0, n].
+double LoopStatsAccumulator::percentile(double q) const noexcept {
+  if (stats_.cycles == 0) return 0.0;
+  // Rank of the q-th quantile among the samples, as a continuous position in [0, n].
   const double n = static_cast<double>(stats_.cycles);
-  const double rank = 0.99 * n;
+  const double rank = q * n;
   double below = 0.0;
   for (std::size_t i = 0; i < kHistogramBins; ++i) {
     const double count = static_cast<double>(stats_.lateness_histogram[i]);
@@ -77,12 +80,11 @@ void LoopStatsAccumulator::fill(daemon::LoopStatistics& out) const noexcept {
       const double hi = i + 1 < kHistogramBins ? lateness_bin_lower_us(i + 1)
                                                : std::max(lo, stats_.lateness_max_us);
       const double p = lo + (hi - lo) * (rank - below) / count;
-      out.lateness_p99_us = std::clamp(p, stats_.lateness_min_us, stats_.lateness_max_us);
-      return;
+      return std::clamp(p, stats_.lateness_min_us, stats_.lateness_max_us);
     }
     below += count;
   }
-  out.lateness_p99_us = stats_.lateness_max_us;
+  return stats_.lateness_max_us;
 }
 
 }  // namespace scp::rt

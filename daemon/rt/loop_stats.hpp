@@ -28,8 +28,8 @@ class LoopStatsAccumulator {
 
   void reset() noexcept;
 
-  // Copies the statistics into `out`, computing the mean and the 99th percentile: p99 is read
-  // from the histogram, interpolated linearly within the bin that holds the 99th-percentile rank
+  // Copies the statistics into `out`, computing the mean, the median and the 99th percentile: each
+  // is read from the histogram, interpolated linearly within the bin that holds its rank
   // (the open last bin uses the observed maximum as its upper edge), then clamped to [min, max].
   // Its error is therefore at most the width of that bin — a factor of two, which is what a
   // logarithmic histogram can promise without storing samples.
@@ -41,6 +41,8 @@ class LoopStatsAccumulator {
   }
 
  private:
+  double percentile(double q) const noexcept;
+
   daemon::LoopStatistics stats_{};  // counters, min/max, histogram; means and p99 filled on demand
   double lateness_sum_us_ = 0.0;
   double exec_sum_us_ = 0.0;

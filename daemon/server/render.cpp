@@ -98,6 +98,7 @@ std::string render_status(const PublishedState& state, const ServerInfo& info) {
   json lateness = json::object();
   put_finite(lateness, "min", loop.lateness_min_us);
   put_finite(lateness, "mean", loop.lateness_mean_us);
+  put_finite(lateness, "p50", loop.lateness_p50_us);
   put_finite(lateness, "p99", loop.lateness_p99_us);
   put_finite(lateness, "max", loop.lateness_max_us);
   json exec = json::object();
@@ -115,6 +116,7 @@ std::string render_status(const PublishedState& state, const ServerInfo& info) {
                  {"lateness_us", lateness},
                  {"exec_us", exec},
                  {"histogram", {{"edges_us", edges}, {"counts", counts}}}};
+  if (loop.allocations_counted) out["loop"]["allocations"] = loop.allocations;
 
   const drivers::DriverStats& driver = state.driver;
   out["driver_stats"] = {{"reads", driver.reads},     {"read_errors", driver.read_errors},

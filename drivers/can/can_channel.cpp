@@ -10,12 +10,25 @@
 
 #include <cerrno>
 #include <cstring>
+#include <string_view>
 #include <utility>
 #include <vector>
 
 #include "drivers/driver.hpp"
 
 namespace scp::drivers::can {
+
+int inherited_fd(const std::string& interface) {
+  static constexpr std::string_view kPrefix = "fd:";
+  if (interface.rfind(kPrefix, 0) != 0) return -1;
+  const std::string digits = interface.substr(kPrefix.size());
+  if (digits.empty() || digits.size() > 6 ||
+      digits.find_first_not_of("0123456789") != std::string::npos) {
+    throw DriverError("CAN interface '" + interface +
+                      "': an inherited descriptor is written fd:N with N a number, e.g. fd:3");
+  }
+  return std::stoi(digits);
+}
 
 CanChannel::CanChannel(int fd) : fd_(fd) {
   const int flags = fd < 0 ? -1 : ::fcntl(fd, F_GETFL);

@@ -56,6 +56,11 @@ class CanChannel {
   std::uint32_t kernel_drops_ = 0;
 };
 
+// The descriptor named by an interface of the form "fd:N" (N ≥ 0: a socket inherited from the
+// process that started us, e.g. one end of a socketpair, or a systemd socket), or -1 when the
+// interface is an ordinary name. Throws DriverError for "fd:" followed by anything but digits.
+int inherited_fd(const std::string& interface);
+
 // Creates a CAN_RAW socket on `ifname` that receives only `ids` (each with CAN_EFF_FLAG for a
 // 29-bit id) and every error class except CAN_ERR_BUSERROR, enables FD frames when fd_mode, asks
 // for drop counts (SO_RXQ_OVFL), and binds. Throws DriverError naming the remedy.

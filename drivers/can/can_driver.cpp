@@ -1,6 +1,7 @@
 #include "drivers/can/can_driver.hpp"
 
 #include <linux/can/error.h>
+#include <poll.h>
 
 #include <cmath>
 #include <cstdio>
@@ -62,7 +63,11 @@ CanDriver::CanDriver(const CanSettings& settings, CanChannel channel) : CanDrive
 
 void CanDriver::open() {
   if (!have_channel_) {
-    channel_ = open_socketcan(settings_.interface, receive_ids(), settings_.fd);
+    const int inherited = inherited_fd(settings_.interface);
+    // interface "fd:N": the socket was opened by whoever started us (a test's socketpair, a
+    // supervisor holding the bus); it carries can_frame records like a CAN_RAW socket.
+    channel_ = inherited >= 0 ? CanChannel(inherited)
+                              : open_socketcan(settings_.interface, receive_ids(), settings_.fd);
     have_channel_ = true;
   }
   started_ = false;
@@ -129,6 +134,13 @@ void CanDriver::handle_data_frame(const canfd_frame& f, double t) noexcept {
   }
 }
 
+bool CanDriver::all_present_fresh() const noexcept {
+  for (int i = 0; i < 4; ++i) {
+    if (signal_at(settings_, i)->present && !fresh_[i]) return false;
+  }
+  return true;
+}
+
 IoResult CanDriver::read(const CycleTime& now, Sample& out) noexcept {
   if (!channel_.valid()) {
     ++stats_.read_errors;
@@ -143,11 +155,19 @@ IoResult CanDriver::read(const CycleTime& now, Sample& out) noexcept {
     start_t_ = now.t;
   }
   fresh_ = {};
+  // Lock-step (read_wait_s > 0): wait, bounded, until every present signal is new this cycle.
+  double wait_left_ms = settings_.read_wait_s * 1e3;
   for (int n = 0; n < settings_.max_frames_per_cycle; ++n) {
     canfd_frame f{};
     bool is_fd = false;
     const RxStatus rx = channel_.receive(f, is_fd);
-    if (rx == RxStatus::empty) break;
+    if (rx == RxStatus::empty) {
+      if (wait_left_ms <= 0.0 || all_present_fresh()) break;
+      pollfd p{channel_.fd(), POLLIN, 0};
+      const int ms = static_cast<int>(std::ceil(std::min(wait_left_ms, 100.0)));
+      if (::poll(&p, 1, ms) <= 0) wait_left_ms -= ms;  // timeout (or EINTR): less time left
+      continue;
+    }
     if (rx == RxStatus::frame) {
       if (f.can_id & CAN_ERR_FLAG) {
         handle_error_frame(f);

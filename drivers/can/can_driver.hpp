@@ -60,6 +60,7 @@ class CanDriver final : public Driver {
   std::span<const canid_t> receive_ids() const noexcept { return {ids_.data(), n_ids_}; }
 
  private:
+  bool all_present_fresh() const noexcept;
   void handle_error_frame(const canfd_frame& f) noexcept;
   void handle_data_frame(const canfd_frame& f, double t) noexcept;
   IoResult send_command(double volts, bool force) noexcept;

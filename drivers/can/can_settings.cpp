@@ -70,6 +70,16 @@ bool same_frame(const CanSignal& a, const CanSignal& b) {
 }  // namespace
 
 std::optional<SettingsProblem> validate_can_settings(const CanSettings& s) {
+  if (s.interface.rfind("fd:", 0) == 0) {
+    const std::string n = s.interface.substr(3);
+    if (n.empty() || n.size() > 6 || n.find_first_not_of("0123456789") != std::string::npos) {
+      return SettingsProblem{"interface",
+                             "an inherited descriptor is written fd:N with N a number (fd:3)"};
+    }
+  }
+  if (!(s.read_wait_s >= 0.0 && s.read_wait_s <= 10.0)) {
+    return SettingsProblem{"read_wait_s", "must lie in 0..10 s"};
+  }
   if (s.interface.empty() || s.interface.size() >= 16) {
     return SettingsProblem{"interface", "interface name must have 1..15 characters (e.g. can0)"};
   }

@@ -43,6 +43,9 @@ struct CanSettings {
   CanCommand command;
   int tx_full_fault_after = 10;    // consecutive "transmit queue full" writes before a fault
   int max_frames_per_cycle = 256;  // bound on the per-cycle drain so a flooded bus cannot stall
+  // > 0: read() waits up to this long for a new value of every sensor signal (lock-step offline
+  // runs against scp-simdaq --lockstep); 0: never waits (real time: the node sends periodically).
+  double read_wait_s = 0.0;
 };
 
 // The signal names, in the order the driver keeps them; used in messages and config keys.

@@ -1,5 +1,7 @@
 #include "drivers/can/can_sim_node.hpp"
 
+#include <linux/can/error.h>
+#include <poll.h>
 #include <time.h>
 
 #include <cerrno>
@@ -24,6 +26,24 @@ canid_t wire_id(const CanSignal& sig) noexcept {
   return sig.extended ? (sig.frame_id | CAN_EFF_FLAG) : sig.frame_id;
 }
 
+double monotonic_s() noexcept {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
+bool in_window(double t, double after, double duration) noexcept {
+  return after >= 0 && t >= after && (duration <= 0 || t < after + duration);
+}
+
+canfd_frame error_frame(canid_t cls, std::uint8_t ctrl) noexcept {
+  canfd_frame f{};
+  f.can_id = CAN_ERR_FLAG | cls;
+  f.len = CAN_ERR_DLC;
+  f.data[1] = ctrl;
+  return f;
+}
+
 }  // namespace
 
 CanSimNode::CanSimNode(const CanSettings& can, const sim::SimSettings& sim, CanChannel channel)
@@ -44,6 +64,7 @@ CanSimNode::CanSimNode(const CanSettings& can, const sim::SimSettings& sim, CanC
     target->signals[static_cast<std::size_t>(target->n_signals++)] = i;
   }
   sim_.open();
+  wall0_ = monotonic_s();
 }
 
 bool CanSimNode::send_raw(const canfd_frame& f, bool is_fd) noexcept {
@@ -65,6 +86,9 @@ void CanSimNode::step(double t, double period) noexcept {
     if (std::isfinite(v)) {
       voltage_ = v;  // the latest command wins, as on a DAC register
       ++counters_.commands;
+      if (log_ != nullptr) {
+        std::fprintf(log_, "%lld,%.6f,%.9g\n", std::llround(t / period), monotonic_s() - wall0_, v);
+      }
     }
   }
   (void)sim_.write_voltage(voltage_);
@@ -96,6 +120,16 @@ void CanSimNode::step(double t, double period) noexcept {
 
 int run_can_sim_node(const CanSettings& can, const sim::SimSettings& sim, double period_s, int fd,
                      std::atomic<bool>& stop) {
+  CanNodeOptions options;
+  options.period_s = period_s;
+  options.fd = fd;
+  return run_can_sim_node(can, sim, options, stop);
+}
+
+int run_can_sim_node(const CanSettings& can, const sim::SimSettings& sim, const CanNodeOptions& o,
+                     std::atomic<bool>& stop) {
+  const double period_s = o.period_s;
+  const int fd = o.fd;
   if (!(period_s > 0.0) || !std::isfinite(period_s)) {
     std::fprintf(stderr, "scp-simdaq: CAN node period must be > 0 s (got %g)\n", period_s);
     return 1;
@@ -109,10 +143,71 @@ int run_can_sim_node(const CanSettings& can, const sim::SimSettings& sim, double
       channel = open_socketcan(can.interface, ids, can.fd);
     }
     CanSimNode node(can, sim, std::move(channel));
+    std::FILE* log = nullptr;
+    if (!o.command_log.empty()) {
+      log = std::fopen(o.command_log.c_str(), "w");
+      if (log == nullptr) {
+        std::fprintf(stderr, "scp-simdaq: cannot write the command log %s\n",
+                     o.command_log.c_str());
+        return 1;
+      }
+      setvbuf(log, nullptr, _IOLBF, 0);  // a test may SIGKILL us: every line must be on disk
+      node.set_command_log(log);
+    }
+    std::printf("scp-simdaq: CAN node on %s, period %g s%s\n",
+                fd >= 0 ? ("fd " + std::to_string(fd)).c_str() : can.interface.c_str(), period_s,
+                o.lockstep ? ", lock-step" : "");
+    std::fflush(stdout);
+    const double wall0 = monotonic_s();
+    bool was_faulty = false;
+    // Applies the fault window of the options before a step at wall time `w`.
+    const auto inject = [&](double w) {
+      const bool faulty = in_window(w, o.fault_after_s, o.fault_duration_s);
+      if (o.fault == CanNodeFault::silent) node.set_silent(faulty);
+      if (o.fault == CanNodeFault::bus_off && faulty != was_faulty) {
+        (void)node.send_raw(
+            faulty ? error_frame(CAN_ERR_BUSOFF, 0) : error_frame(CAN_ERR_RESTARTED, 0), false);
+      }
+      if (o.fault == CanNodeFault::error_frames && faulty) {
+        (void)node.send_raw(error_frame(CAN_ERR_CRTL, CAN_ERR_CRTL_RX_WARNING), false);
+      }
+      was_faulty = faulty;
+    };
+    const auto finish = [&] {
+      if (log != nullptr) std::fclose(log);
+      const auto& c = node.counters();
+      std::printf(
+          "scp-simdaq: CAN node stopped after %.3f s: %llu commands, %llu frames sent, "
+          "%llu send failures\n",
+          monotonic_s() - wall0, static_cast<unsigned long long>(c.commands),
+          static_cast<unsigned long long>(c.frames_sent),
+          static_cast<unsigned long long>(c.send_failures));
+      std::fflush(stdout);
+      return 0;
+    };
+    if (o.lockstep) {
+      long long k = 0;
+      inject(0.0);
+      node.step(0.0, period_s);
+      while (!stop.load(std::memory_order_relaxed)) {
+        const double w = monotonic_s() - wall0;
+        if (o.duration_s > 0 && w >= o.duration_s) break;
+        pollfd p{node.fd(), POLLIN, 0};
+        const int ready = poll(&p, 1, 100);
+        if (ready <= 0) continue;
+        if (p.revents & (POLLHUP | POLLERR)) break;  // the daemon closed its end
+        inject(w);
+        node.step(static_cast<double>(++k) * period_s, period_s);
+      }
+      return finish();
+    }
     const auto period_ns = static_cast<long long>(std::llround(period_s * 1e9));
     timespec next{};
     clock_gettime(CLOCK_MONOTONIC, &next);
     for (long long k = 0; !stop.load(std::memory_order_relaxed); ++k) {
+      const double w = monotonic_s() - wall0;
+      if (o.duration_s > 0 && w >= o.duration_s) break;
+      inject(w);
       node.step(static_cast<double>(k) * period_s, period_s);
       long long ns = next.tv_nsec + period_ns;
       next.tv_sec += static_cast<time_t>(ns / 1000000000LL);
@@ -121,7 +216,7 @@ int run_can_sim_node(const CanSettings& can, const sim::SimSettings& sim, double
         if (stop.load(std::memory_order_relaxed)) break;
       }
     }
-    return 0;
+    return finish();
   } catch (const std::exception& e) {
     std::fprintf(stderr, "scp-simdaq: %s\n", e.what());
     return 1;

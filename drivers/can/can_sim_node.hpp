@@ -6,6 +6,8 @@
 #include <array>
 #include <atomic>
 #include <cstdint>
+#include <cstdio>
+#include <string>
 #include <vector>
 
 #include "drivers/can/can_channel.hpp"
@@ -37,6 +39,11 @@ class CanSimNode {
   // Sends a raw frame (tests inject error frames or malformed payloads through the node).
   bool send_raw(const canfd_frame& f, bool is_fd) noexcept;
 
+  // Every decoded command frame is logged as "step,wall_s,volts" (step = round(t / period) of
+  // the step that applies it; wall_s since the node was made). nullptr: no log.
+  void set_command_log(std::FILE* log) noexcept { log_ = log; }
+
+  int fd() const noexcept { return channel_.fd(); }
   double voltage() const noexcept { return voltage_; }
   const sim::SimDriver& sim() const noexcept { return sim_; }
   const CanSimNodeCounters& counters() const noexcept { return counters_; }
@@ -54,7 +61,27 @@ class CanSimNode {
   std::vector<Frame> frames_;  // built once in the constructor
   double voltage_ = 0.0;
   bool silent_ = false;
+  std::FILE* log_ = nullptr;
+  double wall0_ = 0.0;
   CanSimNodeCounters counters_;
+};
+
+// What goes wrong in the fault window of CanNodeOptions.
+enum class CanNodeFault : std::uint8_t {
+  silent,        // no sensor frames (a node that stopped sending)
+  bus_off,       // a CAN_ERR_BUSOFF error frame at the start, CAN_ERR_RESTARTED at the end
+  error_frames,  // one CAN_ERR_CRTL (error warning) frame per period: counted, not a fault
+};
+
+struct CanNodeOptions {
+  double period_s = 0.001;
+  int fd = -1;            // ≥ 0: an inherited descriptor (see inherited_fd); else can.interface
+  bool lockstep = false;  // one step per received command frame instead of per period
+  std::string command_log;
+  double fault_after_s = -1.0;  // wall seconds; < 0: no fault
+  double fault_duration_s = -1.0;
+  CanNodeFault fault = CanNodeFault::silent;
+  double duration_s = 0.0;  // > 0: stop after this long
 };
 
 // Serves the node in real time until `stop` becomes true: one step per period_s on absolute
@@ -63,5 +90,10 @@ class CanSimNode {
 // stop, 1 on an error (message on stderr).
 int run_can_sim_node(const CanSettings& can, const sim::SimSettings& sim, double period_s, int fd,
                      std::atomic<bool>& stop);
+// The same with lock-step, a command log and fault injection (scp-simdaq --transport can).
+// Lock-step: the node sends the frames of step 0 at once, then advances one period each time
+// command frames arrive, and sends the next frames.
+int run_can_sim_node(const CanSettings& can, const sim::SimSettings& sim,
+                     const CanNodeOptions& options, std::atomic<bool>& stop);
 
 }  // namespace scp::drivers::can

@@ -274,6 +274,12 @@ const char* ModbusDriver::transaction_failed(const Reasons& reasons, int err) no
   // A late reply would be taken as the answer to the next request: discard what is buffered
   // (non-blocking for TCP and RTU).
   modbus_flush(ctx_);
+  if (err == EMBBADDATA && settings_.transport == Transport::tcp) {
+    // A reply to an earlier request (it came after its timeout and after the flush): every
+    // later transaction would read its predecessor's reply. A new connection resynchronizes.
+    drop_link();
+    return reasons[kOther].c_str();
+  }
   if (err == ETIMEDOUT) {
     // A streak of timeouts is a lost link (cable pulled, device rebooted): reconnect.
     if (++timeout_streak_ > settings_.max_consecutive_failures) drop_link();

@@ -71,7 +71,10 @@ Trace load_trace(const std::string& path) {
     throw TraceError(path + ": cannot open trace file (" + std::strerror(errno) +
                      "); check the path and read permission");
   }
+  return parse_trace(in, path);
+}
 
+Trace parse_trace(std::istream& in, const std::string& path) {
   std::string raw;
   std::size_t line_no = 0;
   std::vector<std::string_view> fields;

@@ -13,6 +13,7 @@
 // with a uniform step (each step within 1e-6 relative of the median step), so recordings must
 // write t with enough digits (%.17g, or ≥ 10 significant digits for runs of hours at 1 ms).
 
+#include <istream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -35,5 +36,7 @@ struct Trace {
 inline constexpr double kPeriodTolerance = 1e-6;  // relative to the median step
 
 Trace load_trace(const std::string& path);
+// The same from an already open stream (tests, fuzzing); `name` stands for the file in messages.
+Trace parse_trace(std::istream& in, const std::string& name);
 
 }  // namespace scp::drivers::replay

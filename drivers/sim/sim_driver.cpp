@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <string>
 #include <thread>
 
@@ -73,14 +74,16 @@ void validate(const SimSettings& s) {
 Fault parse_fault(std::string_view name) {
   if (name == "none") return Fault::none;
   if (name == "nan_temperature") return Fault::nan_temperature;
+  if (name == "inf_position") return Fault::inf_position;
   if (name == "stuck_position") return Fault::stuck_position;
+  if (name == "stuck_sensor") return Fault::stuck_sensor;
   if (name == "temperature_out_of_range") return Fault::temperature_out_of_range;
   if (name == "read_error") return Fault::read_error;
   if (name == "no_data") return Fault::no_data;
   if (name == "stall") return Fault::stall;
   throw DriverError("sim.fault.kind: unknown fault '" + std::string(name) +
-                    "'; use one of none, nan_temperature, stuck_position, "
-                    "temperature_out_of_range, read_error, no_data, stall");
+                    "'; use one of none, nan_temperature, inf_position, stuck_position, "
+                    "stuck_sensor, temperature_out_of_range, read_error, no_data, stall");
 }
 
 SimDriver::SimDriver(const SimSettings& settings)
@@ -146,6 +149,19 @@ IoResult SimDriver::read(const CycleTime& now, Sample& out) noexcept {
     have_stuck_x_ = false;
   }
   last_x_ = out.x;
+  if (faulty && fault_ == Fault::inf_position) out.x = std::numeric_limits<double>::infinity();
+  if (faulty && fault_ == Fault::stuck_sensor) {
+    if (!have_stuck_sample_) {
+      stuck_sample_ = stats_.reads > 1 ? last_sample_ : out;
+      have_stuck_sample_ = true;
+    }
+    out.x = stuck_sample_.x;
+    out.xdot = stuck_sample_.xdot;
+    out.temperature = stuck_sample_.temperature;
+  } else {
+    have_stuck_sample_ = false;
+  }
+  last_sample_ = out;
   return IoResult::ok();
 }
 

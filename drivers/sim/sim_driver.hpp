@@ -16,7 +16,9 @@ namespace scp::drivers::sim {
 enum class Fault : std::uint8_t {
   none,
   nan_temperature,           // temperature reads NaN
+  inf_position,              // x reads +infinity (an overflowing converter)
   stuck_position,            // x frozen at its last value before the fault
+  stuck_sensor,              // x, ẋ and T all frozen at their last values (a dead DAQ repeating)
   temperature_out_of_range,  // temperature reads fault_value_c
   read_error,                // read() fails with "simulated sensor read error"
   no_data,                   // read() returns IoStatus::no_data
@@ -65,6 +67,9 @@ class SimDriver final : public Driver {
   bool have_stuck_x_ = false;  // stuck_position: x reported before the fault began
   double stuck_x_ = 0.0;
   double last_x_ = 0.0;
+  bool have_stuck_sample_ = false;  // stuck_sensor: the reading before the fault began
+  Sample stuck_sample_{};
+  Sample last_sample_{};
   DriverStats stats_;
 };
 

@@ -21,7 +21,8 @@ struct SimSettings {
   Drift drift;
   // Fault injection (for end-to-end tests of the daemon's safety): from fault_start_s for
   // fault_duration_s (0 = forever) the sensor reports this fault.
-  // none | nan_temperature | stuck_position | temperature_out_of_range | read_error | no_data |
+  // none | nan_temperature | inf_position | stuck_position | stuck_sensor |
+  // temperature_out_of_range | read_error | no_data |
   // stall (see Fault in sim_driver.hpp)
   std::string fault = "none";
   double fault_start_s = 0, fault_duration_s = 0;

@@ -65,6 +65,19 @@ int main(int argc, char** argv) {
   app.add_option("--exception-code", options.exception_code,
                  "exception code for --exception-after (default 4, server device failure)")
       ->check(CLI::Range(1, 11));
+  app.add_option("--fault-duration", options.fault_duration_s,
+                 "length of the --fault-after / --exception-after window in s (default: for ever)");
+  std::string can_fault = "silent";
+  app.add_option("--can-fault", can_fault,
+                 "CAN: what --fault-after does: silent (no sensor frames), bus_off (bus-off "
+                 "error frame, restarted at the end of the window), error_frames (one "
+                 "controller-warning error frame per period)")
+      ->check(CLI::IsMember({"silent", "bus_off", "error_frames"}));
+  app.add_flag("--lockstep", options.lockstep,
+               "advance the plant one period per command write (offline runs), not per period "
+               "of wall time");
+  app.add_option("--command-log", options.command_log,
+                 "write one line step,wall_s,volts per voltage command received");
   app.add_option("--duration", options.duration_s, "exit after S seconds (0 = until Ctrl-C)");
   CLI11_PARSE(app, argc, argv);
 
@@ -95,9 +108,21 @@ int main(int argc, char** argv) {
 
     if (transport == "can") {
 #if defined(SCP_SIMDAQ_WITH_CAN)
-      scp::drivers::can::CanSettings can = cfg.driver.can;
-      if (!device.empty()) can.interface = device;
-      return scp::drivers::can::run_can_sim_node(can, options.sim, options.period_s, -1, g_stop);
+      namespace can = scp::drivers::can;
+      can::CanSettings settings = cfg.driver.can;
+      if (!device.empty()) settings.interface = device;
+      can::CanNodeOptions node;
+      node.period_s = options.period_s;
+      node.fd = can::inherited_fd(settings.interface);  // --device fd:N: an inherited socket
+      node.lockstep = options.lockstep;
+      node.command_log = options.command_log;
+      node.fault_after_s = options.fault_after_s;
+      node.fault_duration_s = options.fault_duration_s;
+      node.fault = can_fault == "bus_off"        ? can::CanNodeFault::bus_off
+                   : can_fault == "error_frames" ? can::CanNodeFault::error_frames
+                                                 : can::CanNodeFault::silent;
+      node.duration_s = options.duration_s;
+      return can::run_can_sim_node(settings, options.sim, node, g_stop);
 #else
       std::fprintf(stderr, "scp-simdaq: built without the CAN simulated node (drivers/can)\n");
       return 2;

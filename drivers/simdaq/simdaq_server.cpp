@@ -139,6 +139,21 @@ int serve_modbus(const SimDaqOptions& o, std::atomic<bool>& stop) {
   plant.read({0.0, o.period_s}, sample);
   encode_sample(map, sample, mb->tab_input_registers, n_input, mb->tab_registers, n_holding);
 
+  std::FILE* log = nullptr;
+  if (!o.command_log.empty()) {
+    log = std::fopen(o.command_log.c_str(), "w");
+    if (log == nullptr) {
+      std::fprintf(stderr, "scp-simdaq: cannot write the command log %s: %s\n",
+                   o.command_log.c_str(), std::strerror(errno));
+      plant.close();
+      if (listen_fd >= 0) ::close(listen_fd);
+      modbus_free(ctx);
+      modbus_mapping_free(mb);
+      return 1;
+    }
+    setvbuf(log, nullptr, _IOLBF, 0);  // a test may SIGKILL us: every line must be on disk
+  }
+
   std::set<int> clients;
   std::vector<std::uint8_t> query(MODBUS_MAX_ADU_LENGTH);
   const auto start = Clock::now();
@@ -147,6 +162,26 @@ int serve_modbus(const SimDaqOptions& o, std::atomic<bool>& stop) {
   auto next = start + period;
   std::int64_t k = 0;
   std::uint64_t requests = 0, dropped = 0, exceptions = 0, unencodable = 0;
+  // One period of the plant under the voltage the command register holds now.
+  const auto step = [&] {
+    ++k;
+    plant.write_voltage(decode_command(map.command, mb->tab_registers));
+    plant.read({static_cast<double>(k) * o.period_s, o.period_s}, sample);
+    if (!encode_sample(map, sample, mb->tab_input_registers, n_input, mb->tab_registers,
+                       n_holding)) {
+      ++unencodable;
+    }
+  };
+  const int command_end = map.command.address + modbus::register_count(map.command.type);
+  // Whether a request (function 6 or 16) wrote into the command register.
+  const auto writes_command = [&](const std::uint8_t* q) {
+    const int h = modbus_get_header_length(ctx);
+    const int function = q[h];
+    if (function != 0x06 && function != 0x10) return false;
+    const int first = (q[h + 1] << 8) | q[h + 2];
+    const int count = function == 0x06 ? 1 : ((q[h + 3] << 8) | q[h + 4]);
+    return first < command_end && first + count > map.command.address;
+  };
 
   while (!stop.load()) {
     auto now = Clock::now();
@@ -155,18 +190,14 @@ int serve_modbus(const SimDaqOptions& o, std::atomic<bool>& stop) {
     // The plant advances by whole periods of wall-clock time; far behind (a suspended process)
     // it catches up at most one second and then resynchronizes instead of spinning.
     int steps = 0;
-    while (now >= next && steps < static_cast<int>(1.0 / o.period_s) + 1) {
-      ++k;
-      plant.write_voltage(decode_command(map.command, mb->tab_registers));
-      plant.read({static_cast<double>(k) * o.period_s, o.period_s}, sample);
-      if (!encode_sample(map, sample, mb->tab_input_registers, n_input, mb->tab_registers,
-                         n_holding)) {
-        ++unencodable;
-      }
+    while (!o.lockstep && now >= next && steps < static_cast<int>(1.0 / o.period_s) + 1) {
+      step();
       next += period;
       ++steps;
     }
     if (now >= next) next = now + period;
+    // Lock-step: no deadline, only a bound so that Ctrl-C and --duration are seen.
+    if (o.lockstep) next = now + std::chrono::milliseconds(100);
 
     fd_set fds;
     FD_ZERO(&fds);
@@ -215,16 +246,23 @@ int serve_modbus(const SimDaqOptions& o, std::atomic<bool>& stop) {
       }
       ++requests;
       const double t = std::chrono::duration<double>(Clock::now() - start).count();
-      if (o.fault_after_s >= 0 && t >= o.fault_after_s) {
+      if (in_window(t, o.fault_after_s, o.fault_duration_s)) {
         ++dropped;  // a dead slave: the request is read and never answered
         continue;
       }
-      if (o.exception_after_s >= 0 && t >= o.exception_after_s) {
+      if (in_window(t, o.exception_after_s, o.fault_duration_s)) {
         ++exceptions;
         modbus_reply_exception(ctx, query.data(), static_cast<unsigned>(o.exception_code));
         continue;
       }
       modbus_reply(ctx, query.data(), rc, mb);
+      if (writes_command(query.data())) {
+        if (log != nullptr) {
+          std::fprintf(log, "%lld,%.6f,%.9g\n", static_cast<long long>(k), t,
+                       decode_command(map.command, mb->tab_registers));
+        }
+        if (o.lockstep) step();  // the reply went out first: the client is not kept waiting
+      }
     }
     if (!tcp) modbus_set_socket(ctx, rtu_fd);
   }
@@ -236,6 +274,7 @@ int serve_modbus(const SimDaqOptions& o, std::atomic<bool>& stop) {
       static_cast<unsigned long long>(requests), static_cast<unsigned long long>(dropped),
       static_cast<unsigned long long>(exceptions), static_cast<unsigned long long>(unencodable));
   std::fflush(stdout);
+  if (log != nullptr) std::fclose(log);
   plant.close();
   for (const int c : clients) ::close(c);
   if (listen_fd >= 0) ::close(listen_fd);

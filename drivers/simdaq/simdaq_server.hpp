@@ -22,8 +22,20 @@ struct SimDaqOptions {
   double fault_after_s = -1.0;      // ≥ 0: from then on requests are read and not answered
   double exception_after_s = -1.0;  // ≥ 0: from then on requests get exception replies
   int exception_code = 4;           // server device failure
+  double fault_duration_s = -1.0;   // > 0: the fault/exception window ends after this long
   double duration_s = 0.0;          // > 0: exit after this long (tests)
+  // Lock-step: the plant advances exactly one period each time the command register is written,
+  // instead of with the wall clock, so an offline daemon runs the experiment as fast as the
+  // transport allows (docs/simdaq.md).
+  bool lockstep = false;
+  std::string command_log;  // non-empty: one line "step,wall_s,volts" per command received
 };
+
+// Whether a fault window that starts at `after` (< 0: never) and lasts `duration` (≤ 0: for
+// ever) is open at time t.
+inline bool in_window(double t, double after, double duration) noexcept {
+  return after >= 0 && t >= after && (duration <= 0 || t < after + duration);
+}
 
 // Writes one sample into the register image (input/holding arrays of the mapping).
 // Signals that are not present are skipped; values that do not fit their type are written as 0

@@ -214,6 +214,28 @@ TEST(SimDriver, FaultStuckPosition) {
   EXPECT_LT(r.samples[1500].x, r.samples[999].x);
 }
 
+TEST(SimDriver, FaultInfPosition) {
+  const FaultRun r = run_with_fault("inf_position");
+  EXPECT_TRUE(std::isfinite(r.samples[999].x));
+  EXPECT_TRUE(std::isinf(r.samples[1000].x));
+  EXPECT_GT(r.samples[1499].x, 0.0);
+  EXPECT_TRUE(std::isfinite(r.samples[1500].x));
+  EXPECT_TRUE(std::isfinite(r.samples[1200].temperature));
+}
+
+TEST(SimDriver, FaultStuckSensorFreezesXAndT) {
+  const FaultRun r = run_with_fault("stuck_sensor");
+  // Under 3 V the actuator heats and contracts; the dead sensor repeats its last reading.
+  EXPECT_GT(r.samples[999].temperature, r.samples[500].temperature);
+  for (int k = 1000; k < 1500; ++k) {
+    ASSERT_EQ(r.samples[k].x, r.samples[999].x) << k;
+    ASSERT_EQ(r.samples[k].temperature, r.samples[999].temperature) << k;
+    ASSERT_EQ(r.samples[k].xdot, r.samples[999].xdot) << k;
+  }
+  EXPECT_GT(r.samples[1500].temperature, r.samples[999].temperature);
+  EXPECT_LT(r.samples[1500].x, r.samples[999].x);
+}
+
 TEST(SimDriver, FaultReadErrorAndNoData) {
   const FaultRun e = run_with_fault("read_error");
   EXPECT_EQ(e.results[999].status, IoStatus::ok);

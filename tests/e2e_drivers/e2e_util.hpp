@@ -1,0 +1,285 @@
+#pragma once
+// Helpers of the end-to-end tests: child processes (killed by pid when the test ends, even on
+// failure), an inherited descriptor for the CAN tests, temp directories, the daemon's socket,
+// and the configurations the daemon and scp-simdaq share.
+
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/types.h>
+#include <sys/un.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace scp::test {
+
+inline const std::string kDaemon = SCP_DAEMON_PATH;
+inline const std::string kSimdaq = SCP_SIMDAQ_PATH;
+
+// A program started with stdout and stderr on one pipe. `inherit_fd` ≥ 0 is passed as fd 3.
+class Proc {
+ public:
+  explicit Proc(const std::vector<std::string>& argv, int inherit_fd = -1) {
+    int fds[2];
+    if (pipe2(fds, O_CLOEXEC) != 0) return;
+    pid_ = fork();
+    if (pid_ == 0) {
+      dup2(fds[1], 1);
+      dup2(fds[1], 2);
+      if (inherit_fd >= 0) {
+        if (inherit_fd == 3) {
+          fcntl(3, F_SETFD, 0);
+        } else {
+          dup2(inherit_fd, 3);  // dup2 clears FD_CLOEXEC on the copy
+        }
+      }
+      std::vector<char*> args;
+      for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+      args.push_back(nullptr);
+      execv(args[0], args.data());
+      _exit(127);
+    }
+    ::close(fds[1]);
+    out_ = fds[0];
+    fcntl(out_, F_SETFL, O_NONBLOCK);
+  }
+  ~Proc() {
+    stop(SIGKILL);
+    if (out_ >= 0) ::close(out_);
+  }
+  Proc(const Proc&) = delete;
+  Proc& operator=(const Proc&) = delete;
+
+  pid_t pid() const { return pid_; }
+  bool running() {
+    if (pid_ <= 0) return false;
+    int status = 0;
+    if (waitpid(pid_, &status, WNOHANG) == pid_) {
+      pid_ = -1;
+      status_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+      return false;
+    }
+    return true;
+  }
+
+  // Output so far plus what arrives until `pattern` appears or the timeout passes.
+  bool wait_for(const std::string& pattern, double timeout_s) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    while (output_.find(pattern) == std::string::npos) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+          end - std::chrono::steady_clock::now());
+      if (left.count() <= 0) return false;
+      pollfd p{out_, POLLIN, 0};
+      if (poll(&p, 1, static_cast<int>(std::min<long long>(left.count(), 100))) <= 0) continue;
+      if (!drain()) return output_.find(pattern) != std::string::npos;
+    }
+    return true;
+  }
+  const std::string& output() {
+    drain();
+    return output_;
+  }
+  // Waits for the exit (up to timeout_s); returns the exit status or -1 on timeout.
+  int wait_exit(double timeout_s) {
+    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    while (std::chrono::steady_clock::now() < end) {
+      drain();
+      if (!running()) {
+        drain();
+        return status_;
+      }
+      usleep(5000);
+    }
+    return -1;
+  }
+  void stop(int sig) {
+    if (pid_ <= 0) return;
+    kill(pid_, sig);
+    int status = 0;
+    waitpid(pid_, &status, 0);
+    status_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    pid_ = -1;
+    drain();
+  }
+
+ private:
+  bool drain() {
+    char buf[4096];
+    for (;;) {
+      const ssize_t n = ::read(out_, buf, sizeof buf);
+      if (n > 0) {
+        output_.append(buf, static_cast<std::size_t>(n));
+        continue;
+      }
+      return n < 0;  // 0 = EOF
+    }
+  }
+  pid_t pid_ = -1;
+  int out_ = -1;
+  int status_ = -1;
+  std::string output_;
+};
+
+// A temporary directory removed at the end of the test.
+class TempDir {
+ public:
+  TempDir() {
+    std::string tmpl = (std::filesystem::temp_directory_path() / "scp-e2e-XXXXXX").string();
+    if (mkdtemp(tmpl.data()) != nullptr) path_ = tmpl;
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  const std::filesystem::path& path() const { return path_; }
+  std::string file(const std::string& name) const { return (path_ / name).string(); }
+  std::string write(const std::string& name, const std::string& text) const {
+    std::ofstream(file(name)) << text;
+    return file(name);
+  }
+
+ private:
+  std::filesystem::path path_;
+};
+
+// A socketpair standing in for a CAN bus (the kernel here has no SocketCAN): SEQPACKET keeps one
+// can_frame per message, as a CAN_RAW socket does. Both ends close-on-exec; Proc passes one on.
+struct CanWire {
+  int daemon = -1;
+  int node = -1;
+  CanWire() {
+    int fds[2];
+    if (socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, fds) == 0) {
+      daemon = fds[0];
+      node = fds[1];
+    }
+  }
+  ~CanWire() {
+    if (daemon >= 0) ::close(daemon);
+    if (node >= 0) ::close(node);
+  }
+  CanWire(const CanWire&) = delete;
+  CanWire& operator=(const CanWire&) = delete;
+};
+
+// The port scp-simdaq printed ("listening on 127.0.0.1:PORT"), or -1.
+inline int printed_port(const std::string& out) {
+  const auto at = out.find("listening on 127.0.0.1:");
+  if (at == std::string::npos) return -1;
+  return std::atoi(out.c_str() + at + 23);
+}
+
+// The two pty names socat printed ("PTY is /dev/pts/N").
+inline std::vector<std::string> printed_ptys(const std::string& out) {
+  std::vector<std::string> ptys;
+  std::size_t at = 0;
+  while ((at = out.find("PTY is ", at)) != std::string::npos) {
+    at += 7;
+    const auto end = out.find_first_of("\r\n", at);
+    ptys.push_back(out.substr(at, end - at));
+  }
+  return ptys;
+}
+
+// One line "step,wall_s,volts" per command the peer received.
+struct LoggedCommand {
+  long long step = 0;
+  double wall_s = 0.0;
+  double volts = 0.0;
+};
+inline std::vector<LoggedCommand> read_command_log(const std::string& path) {
+  std::vector<LoggedCommand> out;
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) {
+    LoggedCommand c;
+    if (std::sscanf(line.c_str(), "%lld,%lf,%lf", &c.step, &c.wall_s, &c.volts) == 3) {
+      out.push_back(c);
+    }
+  }
+  return out;
+}
+
+// The daemon's socket: one request, one reply (docs/protocol.md).
+inline std::optional<nlohmann::json> request(const std::string& socket_path,
+                                             const std::string& req) {
+  const int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return std::nullopt;
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  std::snprintf(addr.sun_path, sizeof addr.sun_path, "%s", socket_path.c_str());
+  if (connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+    ::close(fd);
+    return std::nullopt;
+  }
+  timeval tv{2, 0};
+  setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  const std::string line = req + "\n";
+  if (::write(fd, line.data(), line.size()) != static_cast<ssize_t>(line.size())) {
+    ::close(fd);
+    return std::nullopt;
+  }
+  std::string buf;
+  char chunk[4096];
+  std::optional<nlohmann::json> reply;
+  while (!reply) {
+    const ssize_t n = ::read(fd, chunk, sizeof chunk);
+    if (n <= 0) break;
+    buf.append(chunk, static_cast<std::size_t>(n));
+    std::size_t nl;
+    while (!reply && (nl = buf.find('\n')) != std::string::npos) {
+      const auto j = nlohmann::json::parse(buf.substr(0, nl), nullptr, false);
+      buf.erase(0, nl + 1);
+      if (!j.is_discarded() && j.value("class", "") != "VERSION") reply = j;
+    }
+  }
+  ::close(fd);
+  return reply;
+}
+
+inline std::optional<nlohmann::json> status(const std::string& socket_path) {
+  return request(socket_path, R"({"request":"status"})");
+}
+
+// Polls the daemon's status until pred holds (or timeout); returns the last status seen.
+template <class Pred>
+nlohmann::json wait_status(const std::string& socket_path, double timeout_s, Pred pred) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  nlohmann::json last;
+  while (std::chrono::steady_clock::now() < end) {
+    if (auto s = status(socket_path)) {
+      last = *s;
+      if (pred(last)) return last;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  return last;
+}
+
+// The last line of `scp-estimatord --offline` is one JSON object.
+inline nlohmann::json last_json_line(const std::string& out) {
+  std::istringstream in(out);
+  std::string line;
+  nlohmann::json last;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] != '{') continue;
+    auto j = nlohmann::json::parse(line, nullptr, false);
+    if (!j.is_discarded()) last = j;
+  }
+  return last;
+}
+
+}  // namespace scp::test

@@ -1,0 +1,228 @@
+// Faults seen from both sides: the peer (scp-simdaq) logs every command it receives, the
+// daemon's socket shows the state. Driver faults (dead or refusing slave, silent CAN node,
+// bus-off, server restart) clear by themselves after safety.recover_after_s; value faults (NaN,
+// out of range) latch until clear-fault, by design.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "e2e_configs.hpp"
+#include "e2e_util.hpp"
+
+namespace scp::test {
+namespace {
+
+std::string state_of(const nlohmann::json& s) {
+  return s.value("state", "");
+}
+
+// Lock-step: the write that follows the first bad sample is already 0 V (within one period).
+void expect_zero_after_step(const std::vector<LoggedCommand>& log, long long bad_step) {
+  ASSERT_FALSE(log.empty());
+  bool excited_before = false;
+  for (const auto& c : log) {
+    if (c.step < bad_step) excited_before = excited_before || c.volts > 0.1;
+    if (c.step >= bad_step) {
+      EXPECT_EQ(c.volts, 0.0) << "step " << c.step;
+    }
+  }
+  EXPECT_TRUE(excited_before);
+  EXPECT_GT(log.back().step, bad_step + 10);
+}
+
+TEST(E2eFaults, DISABLED_NanTemperatureOverModbusGivesZeroVoltsAtTheNextWriteAndLatches) {
+  TempDir dir;
+  RunSetup setup{.socket_path = dir.file("sock"),
+                 .state_dir = dir.path().string(),
+                 .sim_fault = "nan_temperature",
+                 .sim_fault_start_s = 1.0};
+  const std::string log = dir.file("commands.csv");
+  Proc simdaq({kSimdaq, "--config", dir.write("sd.yaml", modbus_tcp_yaml(setup, 1502)), "--listen",
+               "127.0.0.1:0", "--lockstep", "--command-log", log});
+  ASSERT_TRUE(simdaq.wait_for("listening on", 10.0)) << simdaq.output();
+  RunSetup daemon_setup = setup;
+  daemon_setup.sim_fault = "none";
+  Proc daemon({kDaemon, "--config",
+               dir.write("d.yaml", modbus_tcp_yaml(daemon_setup, printed_port(simdaq.output()))),
+               "--offline", "--duration", "2"});
+  ASSERT_EQ(daemon.wait_exit(60.0), 0) << daemon.output();
+  const auto s = last_json_line(daemon.output());
+  EXPECT_EQ(s["state"], "FAULT");
+  EXPECT_NE(s.value("fault_reason", "").find("temperature"), std::string::npos) << s.dump();
+  simdaq.stop(SIGTERM);
+  // The plant serves NaN from loop time 1.0 s on: step 500 at 2 ms.
+  expect_zero_after_step(read_command_log(log), 500);
+}
+
+TEST(E2eFaults, DISABLED_OutOfRangeTemperatureOverCanGivesZeroVoltsAtTheNextFrame) {
+  TempDir dir;
+  CanWire wire;
+  RunSetup setup{.socket_path = dir.file("sock"),
+                 .state_dir = dir.path().string(),
+                 .sim_fault = "temperature_out_of_range",
+                 .sim_fault_start_s = 1.0};
+  const std::string log = dir.file("commands.csv");
+  Proc node({kSimdaq, "--config", dir.write("node.yaml", can_yaml(setup, 1.0)), "--transport",
+             "can", "--device", "fd:3", "--lockstep", "--command-log", log},
+            wire.node);
+  ASSERT_TRUE(node.wait_for("CAN node on fd 3", 10.0)) << node.output();
+  RunSetup daemon_setup = setup;
+  daemon_setup.sim_fault = "none";
+  Proc daemon({kDaemon, "--config", dir.write("d.yaml", can_yaml(daemon_setup, 1.0)), "--offline",
+               "--duration", "2"},
+              wire.daemon);
+  ASSERT_EQ(daemon.wait_exit(60.0), 0) << daemon.output();
+  const auto s = last_json_line(daemon.output());
+  EXPECT_EQ(s["state"], "FAULT") << s.dump();
+  EXPECT_NE(s.value("fault_reason", "").find("temperature"), std::string::npos) << s.dump();
+  node.stop(SIGTERM);
+  // The node logs a command under the step it applies it to; the sample of step 500 (1.0 s)
+  // is the first bad one, so the command applied at step 501 on must be 0 V. The daemon's
+  // open() frame shifts the node one step ahead, hence 502.
+  expect_zero_after_step(read_command_log(log), 502);
+}
+
+// A real-time daemon on a peer whose fault window opens at 1.5 s for 1 s: the daemon faults
+// (0 V), then recovers by itself and excites again.
+struct RealTimeRun {
+  TempDir dir;
+  RunSetup setup;
+  std::string log;
+  RealTimeRun() {
+    setup.period_s = 0.002;
+    setup.socket_path = dir.file("sock");
+    setup.state_dir = dir.path().string();
+    setup.recover_after_s = 0.5;
+    log = dir.file("commands.csv");
+  }
+
+  // Polls until RUNNING, then FAULT with `reason`, then RUNNING again; checks the peer's log.
+  void expect_fault_and_recovery(Proc& daemon, const std::string& reason, bool peer_sees_zero) {
+    const auto up = wait_status(setup.socket_path, 10.0,
+                                [](const auto& s) { return state_of(s) == "running"; });
+    ASSERT_EQ(state_of(up), "running") << up.dump() << daemon.output();
+    const auto fault =
+        wait_status(setup.socket_path, 10.0, [](const auto& s) { return state_of(s) == "fault"; });
+    ASSERT_EQ(state_of(fault), "fault") << fault.dump() << daemon.output();
+    EXPECT_NE(fault.value("fault_reason", "").find(reason), std::string::npos) << fault.dump();
+    EXPECT_EQ(fault.value("voltage", -1.0), 0.0) << fault.dump();
+    const auto back = wait_status(setup.socket_path, 15.0,
+                                  [](const auto& s) { return state_of(s) == "running"; });
+    ASSERT_EQ(state_of(back), "running") << back.dump() << daemon.output();
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    const auto later = status(setup.socket_path);
+    ASSERT_TRUE(later);
+    EXPECT_EQ(state_of(*later), "running") << later->dump();
+    if (peer_sees_zero) {
+      // The peer received 0 V during the outage and non-zero commands after it.
+      const auto cmds = read_command_log(log);
+      bool zero = false, excited_after = false;
+      for (const auto& c : cmds) {
+        if (c.wall_s > 1.5 && c.volts == 0.0) zero = true;
+        if (zero && c.volts > 0.1) excited_after = true;
+      }
+      EXPECT_TRUE(zero && excited_after) << cmds.size() << " commands logged";
+    }
+  }
+};
+
+TEST(E2eFaults, ModbusSlaveThatStopsAnsweringFaultsAndRecovers) {
+  RealTimeRun run;
+  Proc simdaq({kSimdaq, "--config", run.dir.write("sd.yaml", modbus_tcp_yaml(run.setup, 1502)),
+               "--listen", "127.0.0.1:0", "--fault-after", "1.5", "--fault-duration", "1",
+               "--command-log", run.log});
+  ASSERT_TRUE(simdaq.wait_for("listening on", 10.0)) << simdaq.output();
+  Proc daemon({kDaemon, "--config",
+               run.dir.write("d.yaml", modbus_tcp_yaml(run.setup, printed_port(simdaq.output())))});
+  run.expect_fault_and_recovery(daemon, "modbus", true);
+}
+
+TEST(E2eFaults, ModbusExceptionRepliesFaultAndRecover) {
+  RealTimeRun run;
+  Proc simdaq({kSimdaq, "--config", run.dir.write("sd.yaml", modbus_tcp_yaml(run.setup, 1502)),
+               "--listen", "127.0.0.1:0", "--exception-after", "1.5", "--fault-duration", "1",
+               "--exception-code", "4", "--command-log", run.log});
+  ASSERT_TRUE(simdaq.wait_for("listening on", 10.0)) << simdaq.output();
+  Proc daemon({kDaemon, "--config",
+               run.dir.write("d.yaml", modbus_tcp_yaml(run.setup, printed_port(simdaq.output())))});
+  run.expect_fault_and_recovery(daemon, "exception 4", true);
+}
+
+TEST(E2eFaults, ModbusServerKilledAndRestartedMidRun) {
+  RealTimeRun run;
+  const std::string sd_cfg = run.dir.write("sd.yaml", modbus_tcp_yaml(run.setup, 1502));
+  auto simdaq = std::make_unique<Proc>(
+      std::vector<std::string>{kSimdaq, "--config", sd_cfg, "--listen", "127.0.0.1:0"});
+  ASSERT_TRUE(simdaq->wait_for("listening on", 10.0)) << simdaq->output();
+  const int port = printed_port(simdaq->output());
+  Proc daemon({kDaemon, "--config", run.dir.write("d.yaml", modbus_tcp_yaml(run.setup, port))});
+  const auto up = wait_status(run.setup.socket_path, 10.0,
+                              [](const auto& s) { return state_of(s) == "running"; });
+  ASSERT_EQ(state_of(up), "running") << up.dump() << daemon.output();
+  simdaq->stop(SIGKILL);
+  const auto fault = wait_status(run.setup.socket_path, 10.0,
+                                 [](const auto& s) { return state_of(s) == "fault"; });
+  ASSERT_EQ(state_of(fault), "fault") << fault.dump();
+  EXPECT_EQ(fault.value("voltage", -1.0), 0.0);
+  simdaq = std::make_unique<Proc>(std::vector<std::string>{kSimdaq, "--config", sd_cfg, "--listen",
+                                                           "127.0.0.1:" + std::to_string(port),
+                                                           "--command-log", run.log});
+  ASSERT_TRUE(simdaq->wait_for("listening on", 10.0)) << simdaq->output();
+  const auto back = wait_status(run.setup.socket_path, 15.0,
+                                [](const auto& s) { return state_of(s) == "running"; });
+  ASSERT_EQ(state_of(back), "running") << back.dump() << daemon.output();
+  EXPECT_GE(back["driver_stats"].value("reconnects", 0), 1) << back.dump();
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  simdaq->stop(SIGTERM);
+  // After the reconnection the first commands are 0 V (no fresh reading yet), then excitation.
+  const auto cmds = read_command_log(run.log);
+  ASSERT_FALSE(cmds.empty());
+  EXPECT_EQ(cmds.front().volts, 0.0);
+  EXPECT_GT(cmds.back().volts, 0.1);
+}
+
+TEST(E2eFaults, SilentCanNodeFaultsAndRecovers) {
+  RealTimeRun run;
+  CanWire wire;
+  const std::string cfg = run.dir.write("can.yaml", can_yaml(run.setup, 0.0));
+  Proc node({kSimdaq, "--config", cfg, "--transport", "can", "--device", "fd:3", "--fault-after",
+             "1.5", "--fault-duration", "1", "--command-log", run.log},
+            wire.node);
+  ASSERT_TRUE(node.wait_for("CAN node on fd 3", 10.0)) << node.output();
+  Proc daemon({kDaemon, "--config", cfg}, wire.daemon);
+  run.expect_fault_and_recovery(daemon, "stale", true);
+}
+
+TEST(E2eFaults, DISABLED_CanBusOffFaultsAndRecoversOnRestart) {
+  RealTimeRun run;
+  CanWire wire;
+  const std::string cfg = run.dir.write("can.yaml", can_yaml(run.setup, 0.0));
+  Proc node({kSimdaq, "--config", cfg, "--transport", "can", "--device", "fd:3", "--fault-after",
+             "1.5", "--fault-duration", "1", "--can-fault", "bus_off", "--command-log", run.log},
+            wire.node);
+  ASSERT_TRUE(node.wait_for("CAN node on fd 3", 10.0)) << node.output();
+  Proc daemon({kDaemon, "--config", cfg}, wire.daemon);
+  run.expect_fault_and_recovery(daemon, "bus-off", false);
+}
+
+TEST(E2eFaults, CanErrorFramesAreCountedNotAFault) {
+  RealTimeRun run;
+  CanWire wire;
+  const std::string cfg = run.dir.write("can.yaml", can_yaml(run.setup, 0.0));
+  Proc node({kSimdaq, "--config", cfg, "--transport", "can", "--device", "fd:3", "--fault-after",
+             "0.5", "--can-fault", "error_frames"},
+            wire.node);
+  ASSERT_TRUE(node.wait_for("CAN node on fd 3", 10.0)) << node.output();
+  Proc daemon({kDaemon, "--config", cfg}, wire.daemon);
+  const auto up = wait_status(run.setup.socket_path, 10.0,
+                              [](const auto& s) { return state_of(s) == "running"; });
+  ASSERT_EQ(state_of(up), "running") << up.dump() << daemon.output();
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  const auto s = status(run.setup.socket_path);
+  ASSERT_TRUE(s);
+  EXPECT_EQ(state_of(*s), "running") << s->dump();
+}
+
+}  // namespace
+}  // namespace scp::test
