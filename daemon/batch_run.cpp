@@ -22,6 +22,11 @@ nlohmann::json run_batch(config::DaemonConfig cfg, const BatchOptions& options) 
     cfg.estimator.nominal_period = replay->period();
     driver = std::move(replay);
   } else {
+    if (cfg.driver.type == "modbus") {
+      // No wall-clock deadline offline: wait as long as a lock-step peer needs.
+      cfg.driver.modbus.response_timeout_s = cfg.driver.modbus.offline_response_timeout_s;
+      cfg.driver.modbus.enforce_period_budget = false;
+    }
     driver = make_driver(cfg);
   }
   driver->open();
@@ -86,7 +91,7 @@ nlohmann::json run_batch(config::DaemonConfig cfg, const BatchOptions& options) 
 }
 
 std::string summary_table(const nlohmann::json& s) {
-  static const char* names[6] = {"theta1 b/m", "theta2 a1/m", "theta3 k/m",
+  static const char* names[6] = {"theta1 b/m",  "theta2 a1/m",  "theta3 k/m",
                                  "theta4 a2/m", "theta5 l/Cth", "theta6 1/(R Cth)"};
   std::string out;
   char line[200];

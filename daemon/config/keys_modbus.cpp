@@ -136,6 +136,9 @@ void declare_modbus_keys(Binder& m, ModbusSettings& out) {
   m.number("response_timeout", out.response_timeout_s, 0.0004, 0.0001, 10.0,
            "s a transaction may wait for its reply; times the transactions per cycle it must fit "
            "in loop.period");
+  m.number("offline_response_timeout", out.offline_response_timeout_s, 1.0, 0.0001, 60.0,
+           "s a transaction may wait in scp-estimatord --offline (lock-step runs have no period "
+           "budget: a late reply there is a loaded machine, not a dead DAQ)");
   m.integer("max_consecutive_failures", failures, 3, 0, 1000,
             "failed reads (or writes) in a row tolerated as 'no data' before the loop faults");
   out.max_consecutive_failures = static_cast<int>(failures);

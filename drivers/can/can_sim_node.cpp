@@ -163,7 +163,11 @@ int run_can_sim_node(const CanSettings& can, const sim::SimSettings& sim, const 
     // Applies the fault window of the options before a step at wall time `w`.
     const auto inject = [&](double w) {
       const bool faulty = in_window(w, o.fault_after_s, o.fault_duration_s);
-      if (o.fault == CanNodeFault::silent) node.set_silent(faulty);
+      // A controller in bus-off neither sends nor receives: the sensor frames stop too (and
+      // frames still flowing would tell the daemon the controller had restarted).
+      if (o.fault == CanNodeFault::silent || o.fault == CanNodeFault::bus_off) {
+        node.set_silent(faulty);
+      }
       if (o.fault == CanNodeFault::bus_off && faulty != was_faulty) {
         (void)node.send_raw(
             faulty ? error_frame(CAN_ERR_BUSOFF, 0) : error_frame(CAN_ERR_RESTARTED, 0), false);

@@ -69,7 +69,7 @@ class CanSimNode {
 // What goes wrong in the fault window of CanNodeOptions.
 enum class CanNodeFault : std::uint8_t {
   silent,        // no sensor frames (a node that stopped sending)
-  bus_off,       // a CAN_ERR_BUSOFF error frame at the start, CAN_ERR_RESTARTED at the end
+  bus_off,       // CAN_ERR_BUSOFF at the start, then silent, CAN_ERR_RESTARTED at the end
   error_frames,  // one CAN_ERR_CRTL (error warning) frame per period: counted, not a fault
 };
 

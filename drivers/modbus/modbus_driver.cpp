@@ -153,7 +153,7 @@ modbus_t* ModbusDriver::make_context(std::string& error) const {
 
 void ModbusDriver::open() {
   if (opened_) return;
-  check_timing(settings_, period_s_);
+  if (settings_.enforce_period_budget) check_timing(settings_, period_s_);
   plan_ = plan_reads(settings_, settings_.max_read_gap);
   buffers_.assign(plan_.blocks.size(), {});
   read_reasons_.clear();

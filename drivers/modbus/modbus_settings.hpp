@@ -52,8 +52,12 @@ struct ModbusSettings {
 
   int unit_id = 1;
   double response_timeout_s = 0.0004;  // per transaction; see check_timing()
-  int max_consecutive_failures = 3;    // failed transactions tolerated in a row
-  double reconnect_initial_s = 0.1;    // back-off of the reconnect thread, doubled per attempt
+  // An offline (lock-step) run has no wall-clock deadline: a late reply there is load on the
+  // machine, not a dead DAQ. scp-estimatord --offline uses this timeout and skips check_timing().
+  double offline_response_timeout_s = 1.0;
+  bool enforce_period_budget = true;  // false only for offline runs
+  int max_consecutive_failures = 3;   // failed transactions tolerated in a row
+  double reconnect_initial_s = 0.1;   // back-off of the reconnect thread, doubled per attempt
   double reconnect_max_s = 5.0;
   int max_read_gap = 8;  // registers read and discarded to merge two signals into one request
 

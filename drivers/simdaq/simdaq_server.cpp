@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <bit>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -40,7 +41,16 @@ bool encode_sample(const modbus::ModbusSettings& map, const Sample& sample,
     const int size = s.table == Table::input ? n_input : n_holding;
     if (s.address + n > size) continue;
     std::array<std::uint16_t, 2> regs{};
-    if (!modbus::encode_value(s.type, s.word_order, s.scale, s.offset, values[i], regs.data())) {
+    if (s.type == modbus::RegisterType::float32 && !std::isfinite(values[i])) {
+      // A float register can carry a failed sensor's NaN (or inf): serve it as such, so the
+      // daemon's value checks see what a real DAQ would send (the NaN fault injection).
+      const auto word = std::bit_cast<std::uint32_t>(static_cast<float>(values[i]));
+      const auto hi = static_cast<std::uint16_t>(word >> 16);
+      const auto lo = static_cast<std::uint16_t>(word & 0xFFFFu);
+      regs = s.word_order == modbus::WordOrder::ba ? std::array<std::uint16_t, 2>{lo, hi}
+                                                   : std::array<std::uint16_t, 2>{hi, lo};
+    } else if (!modbus::encode_value(s.type, s.word_order, s.scale, s.offset, values[i],
+                                     regs.data())) {
       all_fit = false;
       regs = {};
     }

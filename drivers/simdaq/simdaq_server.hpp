@@ -38,8 +38,9 @@ inline bool in_window(double t, double after, double duration) noexcept {
 }
 
 // Writes one sample into the register image (input/holding arrays of the mapping).
-// Signals that are not present are skipped; values that do not fit their type are written as 0
-// (int types) — the caller counts them. Returns false when any present value did not fit.
+// Signals that are not present are skipped; NaN and inf go into float32 registers as such (a
+// failed sensor); other values that do not fit their type are written as 0 — the caller counts
+// them. Returns false when any present value did not fit.
 bool encode_sample(const modbus::ModbusSettings& map, const Sample& sample,
                    std::uint16_t* input_registers, int n_input, std::uint16_t* holding_registers,
                    int n_holding) noexcept;

@@ -19,8 +19,8 @@ namespace {
 constexpr double kDuration = 100.0;
 // θ from Table I (m = 0.1, R = 1, Cth = 0.9090, λ = 0.054, b = 124.7, k = 181.3, α1 = 0.08,
 // α2 = 0.01), computed here: only the in-process simulator reports it to the daemon.
-const double kTheta[6] = {124.7 / 0.1, 0.08 / 0.1, 181.3 / 0.1, 0.01 / 0.1, 0.0540 / 0.9090,
-                          1.0 / 0.9090};
+const double kTheta[6] = {124.7 / 0.1, 0.08 / 0.1,      181.3 / 0.1,
+                          0.01 / 0.1,  0.0540 / 0.9090, 1.0 / 0.9090};
 // Thermal pair: the 1e-3. Mechanical block: the transports' quantization (and, on CAN,
 // integer signals) leave ~1e-3 where the in-process simulator reaches ~4e-4 (measured); 3e-3.
 constexpr double kTolerance[6] = {3e-3, 3e-3, 3e-3, 3e-3, 1e-3, 1e-3};
@@ -68,7 +68,7 @@ TEST(E2eConvergence, InProcessSimulatorReference) {
   expect_converged(s);
 }
 
-TEST(E2eConvergence, DISABLED_ModbusTcpLockstepFloat32) {
+TEST(E2eConvergence, ModbusTcpLockstepFloat32) {
   TempDir dir;
   RunSetup setup{.socket_path = dir.file("sock"), .state_dir = dir.path().string()};
   const std::string sd_cfg = dir.write("simdaq.yaml", modbus_tcp_yaml(setup, 1502));
@@ -81,7 +81,7 @@ TEST(E2eConvergence, DISABLED_ModbusTcpLockstepFloat32) {
   expect_converged(s);
 }
 
-TEST(E2eConvergence, DISABLED_ModbusRtuOverAPtyPairLockstepFloat32) {
+TEST(E2eConvergence, ModbusRtuOverAPtyPairLockstepFloat32) {
   TempDir dir;
   Proc socat({"/usr/bin/socat", "-d", "-d", "pty,raw,echo=0", "pty,raw,echo=0"});
   if (!socat.wait_for("starting data transfer", 10.0)) GTEST_SKIP() << "socat: " << socat.output();

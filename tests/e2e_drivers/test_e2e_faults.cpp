@@ -13,8 +13,10 @@
 namespace scp::test {
 namespace {
 
+// "" when the daemon never answered (wait_status then returns null): the assertion that follows
+// prints the daemon's output instead of a json exception.
 std::string state_of(const nlohmann::json& s) {
-  return s.value("state", "");
+  return s.is_object() ? s.value("state", "") : "";
 }
 
 // Lock-step: the write that follows the first bad sample is already 0 V (within one period).
@@ -31,7 +33,7 @@ void expect_zero_after_step(const std::vector<LoggedCommand>& log, long long bad
   EXPECT_GT(log.back().step, bad_step + 10);
 }
 
-TEST(E2eFaults, DISABLED_NanTemperatureOverModbusGivesZeroVoltsAtTheNextWriteAndLatches) {
+TEST(E2eFaults, NanTemperatureOverModbusGivesZeroVoltsAtTheNextWriteAndLatches) {
   TempDir dir;
   RunSetup setup{.socket_path = dir.file("sock"),
                  .state_dir = dir.path().string(),
@@ -55,7 +57,7 @@ TEST(E2eFaults, DISABLED_NanTemperatureOverModbusGivesZeroVoltsAtTheNextWriteAnd
   expect_zero_after_step(read_command_log(log), 500);
 }
 
-TEST(E2eFaults, DISABLED_OutOfRangeTemperatureOverCanGivesZeroVoltsAtTheNextFrame) {
+TEST(E2eFaults, OutOfRangeTemperatureOverCanGivesZeroVoltsAtTheNextFrame) {
   TempDir dir;
   CanWire wire;
   RunSetup setup{.socket_path = dir.file("sock"),
@@ -194,7 +196,7 @@ TEST(E2eFaults, SilentCanNodeFaultsAndRecovers) {
   run.expect_fault_and_recovery(daemon, "stale", true);
 }
 
-TEST(E2eFaults, DISABLED_CanBusOffFaultsAndRecoversOnRestart) {
+TEST(E2eFaults, CanBusOffFaultsAndRecoversOnRestart) {
   RealTimeRun run;
   CanWire wire;
   const std::string cfg = run.dir.write("can.yaml", can_yaml(run.setup, 0.0));
