@@ -3,10 +3,10 @@
 #include <functional>
 #include <utility>
 
-#include "drivers/replay/replay_driver.hpp"
-#include "drivers/sim/sim_driver.hpp"
 #include "drivers/can/can_driver.hpp"
 #include "drivers/modbus/modbus_driver.hpp"
+#include "drivers/replay/replay_driver.hpp"
+#include "drivers/sim/sim_driver.hpp"
 
 namespace scp::daemon {
 

@@ -12,7 +12,7 @@ namespace scp::daemon {
 
 struct EstimatorStateView {
   std::array<double, 6> theta_hat{};
-  std::array<double, 16> info_mech{};   // row-major 4×4
+  std::array<double, 16> info_mech{};    // row-major 4×4
   std::array<double, 4> info_thermal{};  // row-major 2×2
   std::array<double, 2> eps2_mean{};
   double t = 0.0;

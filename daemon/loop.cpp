@@ -21,10 +21,14 @@ std::array<double, N> to_array(const Vec& v) noexcept {
 
 const char* to_string(RunState state) noexcept {
   switch (state) {
-    case RunState::starting: return "STARTING";
-    case RunState::running: return "RUNNING";
-    case RunState::fault: return "FAULT";
-    case RunState::stopping: return "STOPPING";
+    case RunState::starting:
+      return "STARTING";
+    case RunState::running:
+      return "RUNNING";
+    case RunState::fault:
+      return "FAULT";
+    case RunState::stopping:
+      return "STOPPING";
   }
   return "UNKNOWN";
 }

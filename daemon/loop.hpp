@@ -94,9 +94,9 @@ class Loop {
   double healthy_since_ = -1.0;  // loop time since which a driver fault's cause has been gone
   bool excitation_enabled_;
   drivers::Sample sample_{};
-  bool sample_fresh_ = false;      // this cycle's read delivered a new, valid sample
-  bool sample_valid_ = false;      // the last delivered sample passed the safety check
-  double last_fresh_t_ = 0.0;      // loop time of the last fresh sample
+  bool sample_fresh_ = false;  // this cycle's read delivered a new, valid sample
+  bool sample_valid_ = false;  // the last delivered sample passed the safety check
+  double last_fresh_t_ = 0.0;  // loop time of the last fresh sample
   bool have_fresh_ = false;
   double last_velocity_t_ = 0.0;
   bool velocity_started_ = false;

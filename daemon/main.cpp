@@ -20,14 +20,15 @@ int main(int argc, char** argv) {
   app.add_option("-c,--config", config_path, "configuration file (YAML)");
   app.add_option("--check-config", check_path, "validate FILE and exit (0 = valid)");
   app.add_flag("--print-config-reference", reference, "print every configuration key and exit");
-  auto* offline_flag = app.add_flag("--offline", offline,
-                                    "run the loop as a batch, without sleeping, and exit");
+  auto* offline_flag =
+      app.add_flag("--offline", offline, "run the loop as a batch, without sleeping, and exit");
   app.add_option("--duration", batch.duration_s, "loop time of a batch run, s")
       ->check(CLI::Range(0.0, 1e9))
       ->needs(offline_flag);
   app.add_option("--record", batch.record_path, "write every cycle of a batch run to this CSV")
       ->needs(offline_flag);
-  app.add_option("--replay", batch.replay_path, "feed this CSV (t,x,xdot,T,V) instead of the driver")
+  app.add_option("--replay", batch.replay_path,
+                 "feed this CSV (t,x,xdot,T,V) instead of the driver")
       ->needs(offline_flag);
   CLI11_PARSE(app, argc, argv);
 

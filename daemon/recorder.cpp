@@ -87,8 +87,8 @@ void Recorder::finish() {
   if (std::fclose(file_) != 0 && error == 0) error = errno;
   file_ = nullptr;
   if (error != 0) {
-    throw std::runtime_error("the recording " + path_ + " is incomplete: " +
-                             std::strerror(error) + " (disk full?)");
+    throw std::runtime_error("the recording " + path_ + " is incomplete: " + std::strerror(error) +
+                             " (disk full?)");
   }
 }
 

@@ -218,10 +218,11 @@ int run_service(const config::DaemonConfig& cfg) {
     if (now.loop.overruns > last_overruns &&
         Clock::now() - last_overrun_log >
             std::chrono::duration<double>(cfg.loop.overrun_warning_interval_s)) {
-      spdlog::warn("{} loop overruns ({} periods skipped) so far; lateness max {:.0f} µs, p99 "
-                   "{:.0f} µs",
-                   now.loop.overruns, now.loop.missed_periods, now.loop.lateness_max_us,
-                   now.loop.lateness_p99_us);
+      spdlog::warn(
+          "{} loop overruns ({} periods skipped) so far; lateness max {:.0f} µs, p99 "
+          "{:.0f} µs",
+          now.loop.overruns, now.loop.missed_periods, now.loop.lateness_max_us,
+          now.loop.lateness_p99_us);
       last_overruns = now.loop.overruns;
       last_overrun_log = Clock::now();
     }

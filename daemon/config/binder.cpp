@@ -42,8 +42,8 @@ struct Binder::Shared {
 
 struct Binder::Impl {
   std::shared_ptr<Shared> shared;
-  YAML::Node node;      // the mapping this binder reads (undefined or null: all defaults)
-  std::string prefix;   // "estimator." for a section, "" at the root
+  YAML::Node node;         // the mapping this binder reads (undefined or null: all defaults)
+  std::string prefix;      // "estimator." for a section, "" at the root
   std::string doc_prefix;  // like prefix, but list items are written "key[]." for the reference
   bool record_docs = true;
   bool template_item = false;
@@ -62,8 +62,8 @@ struct Binder::Impl {
                std::string_view doc) {
     shared->declared.insert(path(key));
     if (!record_docs) return;
-    shared->docs.push_back(KeyDoc{doc_prefix + std::string(key), std::move(type),
-                                  std::move(deflt), std::move(range), std::string(doc)});
+    shared->docs.push_back(KeyDoc{doc_prefix + std::string(key), std::move(type), std::move(deflt),
+                                  std::move(range), std::string(doc)});
   }
 
   [[noreturn]] void fail_at(const YAML::Node& at, std::string_view key,
@@ -76,7 +76,8 @@ struct Binder::Impl {
   }
 
   // Reads a finite number, or fails naming the key.
-  double read_number(std::string_view key, const YAML::Node& value, const std::string& expect) const {
+  double read_number(std::string_view key, const YAML::Node& value,
+                     const std::string& expect) const {
     if (!value.IsScalar()) fail_at(value, key, "expected a number " + expect);
     const std::string& text = value.Scalar();
     double parsed = 0.0;
@@ -173,8 +174,9 @@ void Binder::boolean(std::string_view key, bool& out, bool def, std::string_view
   } else if (text == "false" || text == "False" || text == "no" || text == "off") {
     out = false;
   } else {
-    impl_->fail_at(value, key, "'" + text + "' is not a boolean; write true or false (" +
-                                   std::string(doc) + ")");
+    impl_->fail_at(
+        value, key,
+        "'" + text + "' is not a boolean; write true or false (" + std::string(doc) + ")");
   }
 }
 
@@ -206,8 +208,9 @@ void Binder::choice(std::string_view key, std::string& out, std::string_view def
       return;
     }
   }
-  impl_->fail_at(value, key, "'" + text + "' is not allowed; use one of " + options + " (" +
-                                 std::string(doc) + ")");
+  impl_->fail_at(
+      value, key,
+      "'" + text + "' is not allowed; use one of " + options + " (" + std::string(doc) + ")");
 }
 
 void Binder::numbers(std::string_view key, std::vector<double>& out, const std::vector<double>& def,
@@ -230,8 +233,8 @@ void Binder::numbers(std::string_view key, std::vector<double>& out, const std::
     const std::string item_key = std::string(key) + "[" + std::to_string(i) + "]";
     const double number = impl_->read_number(item_key, value[i], "in " + range_text(min, max));
     if (number < min || number > max) {
-      impl_->fail_at(value[i], item_key, format_number(number) + " is out of range; allowed " +
-                                             range_text(min, max));
+      impl_->fail_at(value[i], item_key,
+                     format_number(number) + " is out of range; allowed " + range_text(min, max));
     }
     parsed.push_back(number);
   }
@@ -269,7 +272,8 @@ void Binder::list(std::string_view key, std::string_view doc,
   };
   // The item's keys go into the reference once, whether or not the file has elements.
   {
-    Binder documenting_item = make_item(YAML::Node(YAML::NodeType::Undefined), 0, impl_->record_docs);
+    Binder documenting_item =
+        make_item(YAML::Node(YAML::NodeType::Undefined), 0, impl_->record_docs);
     documenting_item.impl_->prefix = impl_->path(key) + "[].";
     documenting_item.impl_->template_item = true;
     item(documenting_item, 0);
@@ -295,8 +299,9 @@ bool Binder::present(std::string_view key) const {
 
 namespace {
 
-void walk_unknown(const YAML::Node& node, const std::string& prefix, const std::set<std::string>& declared,
-                  const std::set<std::string>& lists, const std::string& file) {
+void walk_unknown(const YAML::Node& node, const std::string& prefix,
+                  const std::set<std::string>& declared, const std::set<std::string>& lists,
+                  const std::string& file) {
   if (!node.IsDefined() || !node.IsMap()) return;
   for (auto it = node.begin(); it != node.end(); ++it) {
     const std::string key = it->first.IsScalar() ? it->first.Scalar() : std::string("?");
@@ -337,14 +342,20 @@ void Binder::reject_unknown_keys() const {
                impl_->shared->file);
 }
 
-bool Binder::is_template() const noexcept { return impl_->template_item; }
+bool Binder::is_template() const noexcept {
+  return impl_->template_item;
+}
 
-int Binder::line_of(std::string_view key) const { return line_of_node(impl_->child(key)); }
+int Binder::line_of(std::string_view key) const {
+  return line_of_node(impl_->child(key));
+}
 
 void Binder::fail(std::string_view key, std::string_view message) const {
   impl_->fail_at(impl_->child(key), key, std::string(message));
 }
 
-const std::vector<KeyDoc>& Binder::docs() const { return impl_->shared->docs; }
+const std::vector<KeyDoc>& Binder::docs() const {
+  return impl_->shared->docs;
+}
 
 }  // namespace scp::config

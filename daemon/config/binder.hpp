@@ -26,10 +26,10 @@ class ConfigError : public std::runtime_error {
 };
 
 struct KeyDoc {
-  std::string path;     // "estimator.beta"
-  std::string type;     // "number", "integer", "bool", "string", "one of a|b", "list"
-  std::string deflt;    // default as text
-  std::string range;    // "[0.001, 1000]" or ""
+  std::string path;   // "estimator.beta"
+  std::string type;   // "number", "integer", "bool", "string", "one of a|b", "list"
+  std::string deflt;  // default as text
+  std::string range;  // "[0.001, 1000]" or ""
   std::string doc;
 };
 

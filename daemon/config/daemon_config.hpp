@@ -24,9 +24,9 @@ struct LoopSettings {
 };
 
 struct ActuatorSettings {
-  double ambient_c = 25.0;     // T̄ = T − ambient
-  double mass_kg = 0.0;        // 0 = unknown; with R, lets the daemon report b, k, α1, α2, λ, Cth
-  double resistance_ohm = 0.0; // 0 = unknown
+  double ambient_c = 25.0;  // T̄ = T − ambient
+  double mass_kg = 0.0;     // 0 = unknown; with R, lets the daemon report b, k, α1, α2, λ, Cth
+  double resistance_ohm = 0.0;  // 0 = unknown
 };
 
 struct VelocitySettings {

@@ -149,7 +149,8 @@ void declare_estimator(Binder est, estimator::EstimatorConfig& out) {
 }
 
 void declare_excitation(Binder exc, ExcitationConfig& out) {
-  exc.boolean("enabled", out.enabled, true, "excite at start (else hold 0 V until `excitation on`)");
+  exc.boolean("enabled", out.enabled, true,
+              "excite at start (else hold 0 V until `excitation on`)");
   exc.choice("profile", out.profile, "paper", {"paper", "custom"},
              "paper: the four-sine voltage of Section IV; custom: the keys below");
   auto& s = out.settings;
@@ -164,12 +165,13 @@ void declare_excitation(Binder exc, ExcitationConfig& out) {
     if (!item.is_template()) s.sines.push_back(sine);
   });
   s.steps.clear();
-  exc.list("steps", "steps (custom): from time_s on, level_v is added", [&](Binder& item, std::size_t) {
-    excitation::Step step;
-    item.number("time_s", step.time_s, 0.0, 0.0, kHuge, "time the step occurs, s");
-    item.number("level_v", step.level_v, 0.0, -1e3, 1e3, "height of the step in V");
-    if (!item.is_template()) s.steps.push_back(step);
-  });
+  exc.list("steps", "steps (custom): from time_s on, level_v is added",
+           [&](Binder& item, std::size_t) {
+             excitation::Step step;
+             item.number("time_s", step.time_s, 0.0, 0.0, kHuge, "time the step occurs, s");
+             item.number("level_v", step.level_v, 0.0, -1e3, 1e3, "height of the step in V");
+             if (!item.is_template()) s.steps.push_back(step);
+           });
   Binder prbs = exc.section("prbs", "pseudo-random binary sequence (custom)");
   prbs.number("amplitude_v", s.prbs.amplitude, 0.0, 0.0, 1e3, "±amplitude in V; 0 disables it");
   prbs.number("bit_period_s", s.prbs.bit_period_s, 1.0, 1e-4, 1e6, "duration of one bit");
@@ -248,8 +250,9 @@ void cross_check(const Binder& root, DaemonConfig& cfg) {
   }
   if (cfg.actuator.ambient_c <= cfg.safety.temperature_min_c ||
       cfg.actuator.ambient_c >= cfg.safety.temperature_max_c) {
-    root.fail("actuator", "actuator.ambient_c must lie between safety.temperature_min_c and "
-                          "safety.temperature_max_c");
+    root.fail("actuator",
+              "actuator.ambient_c must lie between safety.temperature_min_c and "
+              "safety.temperature_max_c");
   }
   if (est.p0 > est.p_max) {
     root.fail("estimator", "estimator.p0 must not exceed estimator.p_max");
@@ -294,8 +297,7 @@ YAML::Node parse_yaml(const std::string& text, const std::string& name) {
 
 void declare_daemon_keys(Binder& root, DaemonConfig& out) {
   declare_loop(root.section("loop", "timing of the real-time loop"), out.loop);
-  declare_actuator(root.section("actuator", "facts about the actuator on the bench"),
-                   out.actuator);
+  declare_actuator(root.section("actuator", "facts about the actuator on the bench"), out.actuator);
   declare_driver(root.section("driver", "the device the loop reads and drives"), out.driver,
                  out.actuator);
   declare_estimator(root.section("estimator", "the filtered least-squares estimator"),
@@ -311,8 +313,9 @@ void declare_daemon_keys(Binder& root, DaemonConfig& out) {
 DaemonConfig load_config_file(const std::string& path) {
   std::ifstream in(path);
   if (!in) {
-    throw ConfigError(path + ": cannot open the configuration file (does it exist and is it "
-                             "readable by this user?)");
+    throw ConfigError(path +
+                      ": cannot open the configuration file (does it exist and is it "
+                      "readable by this user?)");
   }
   std::stringstream text;
   text << in.rdbuf();

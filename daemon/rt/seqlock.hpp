@@ -19,7 +19,8 @@ namespace scp::rt {
 template <class T>
 class Seqlock {
   static_assert(std::is_trivially_copyable_v<T>, "seqlock payloads are copied bytewise");
-  static constexpr std::size_t kWords = (sizeof(T) + sizeof(std::uint64_t) - 1) / sizeof(std::uint64_t);
+  static constexpr std::size_t kWords =
+      (sizeof(T) + sizeof(std::uint64_t) - 1) / sizeof(std::uint64_t);
 
  public:
   Seqlock() noexcept {

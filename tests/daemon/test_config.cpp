@@ -78,9 +78,9 @@ TEST(Config, CrossKeyChecks) {
 
 TEST(Config, ReferenceListsEveryDeclaredKeyOnce) {
   const std::string ref = config_reference_markdown();
-  for (const char* key : {"`loop.period_s`", "`estimator.beta`", "`excitation.sines[].frequency_hz`",
-                          "`safety.temperature_max_c`", "`socket.path`", "`state.warm_start`",
-                          "`driver.sim.plant.b`"}) {
+  for (const char* key : {"`loop.period_s`", "`estimator.beta`",
+                          "`excitation.sines[].frequency_hz`", "`safety.temperature_max_c`",
+                          "`socket.path`", "`state.warm_start`", "`driver.sim.plant.b`"}) {
     const auto first = ref.find(key);
     EXPECT_NE(first, std::string::npos) << key;
     EXPECT_EQ(ref.find(key, first + 1), std::string::npos) << key << " declared twice";
