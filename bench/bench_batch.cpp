@@ -29,8 +29,12 @@ void run(benchmark::State& state, bool record) {
   if (record) std::filesystem::remove(csv);
 }
 
-void BM_PaperBatch200s(benchmark::State& state) { run(state, false); }
-void BM_PaperBatch200sRecorded(benchmark::State& state) { run(state, true); }
+void BM_PaperBatch200s(benchmark::State& state) {
+  run(state, false);
+}
+void BM_PaperBatch200sRecorded(benchmark::State& state) {
+  run(state, true);
+}
 
 BENCHMARK(BM_PaperBatch200s)->Unit(benchmark::kMillisecond)->Iterations(3)->UseRealTime();
 BENCHMARK(BM_PaperBatch200sRecorded)->Unit(benchmark::kMillisecond)->Iterations(2)->UseRealTime();

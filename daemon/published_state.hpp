@@ -24,12 +24,12 @@ inline constexpr std::size_t kHistogramBins = 32;
 // Wake-up lateness and cycle execution time, kept by the loop thread only.
 struct LoopStatistics {
   std::uint64_t cycles = 0;
-  std::uint64_t overruns = 0;          // cycles whose work ran past the next deadline
-  std::uint64_t missed_periods = 0;    // periods skipped to resynchronise after an overrun
+  std::uint64_t overruns = 0;        // cycles whose work ran past the next deadline
+  std::uint64_t missed_periods = 0;  // periods skipped to resynchronise after an overrun
   double lateness_min_us = 0.0;
   double lateness_mean_us = 0.0;
-  double lateness_p50_us = 0.0;        // from the histogram
-  double lateness_p99_us = 0.0;        // from the histogram
+  double lateness_p50_us = 0.0;  // from the histogram
+  double lateness_p99_us = 0.0;  // from the histogram
   double lateness_max_us = 0.0;
   double exec_mean_us = 0.0;
   double exec_max_us = 0.0;
@@ -43,19 +43,19 @@ struct LoopStatistics {
 };
 
 struct EstimateView {
-  double t = 0.0;                       // s, loop time of the last update
+  double t = 0.0;  // s, loop time of the last update
   std::array<double, 6> theta_hat{};
-  std::array<double, 6> sigma{};        // per-parameter standard deviation
-  std::array<double, 2> eps{};          // prediction error, eq. (20)
-  std::array<double, 2> af{};           // filtered signal a_f, eq. (10)
-  std::array<double, 2> af_hat{};       // W_f θ̂, eq. (18)
-  std::array<double, 2> excitation{};   // per block: mechanical, thermal
-  std::array<bool, 2> converged{};      // per block
+  std::array<double, 6> sigma{};       // per-parameter standard deviation
+  std::array<double, 2> eps{};         // prediction error, eq. (20)
+  std::array<double, 2> af{};          // filtered signal a_f, eq. (10)
+  std::array<double, 2> af_hat{};      // W_f θ̂, eq. (18)
+  std::array<double, 2> excitation{};  // per block: mechanical, thermal
+  std::array<bool, 2> converged{};     // per block
   std::uint64_t updates = 0;
-  std::uint64_t skipped = 0;            // samples rejected (non-finite or out of range)
-  bool has_truth = false;               // simulated driver only
+  std::uint64_t skipped = 0;  // samples rejected (non-finite or out of range)
+  bool has_truth = false;     // simulated driver only
   std::array<double, 6> theta_true{};
-  bool has_physical = false;            // when m and R are configured
+  bool has_physical = false;  // when m and R are configured
   // b, k, alpha1, alpha2, lambda, Cth derived from θ̂ with the configured m and R.
   std::array<double, 6> physical{};
 };
@@ -72,7 +72,7 @@ struct PublishedState {
   double uptime_s = 0.0;
   double period_s = 0.0;
   bool excitation_enabled = true;
-  double voltage_command = 0.0;         // V actually sent this cycle (after safety)
+  double voltage_command = 0.0;  // V actually sent this cycle (after safety)
   drivers::Sample last_sample{};
   LoopStatistics loop{};
   drivers::DriverStats driver{};
