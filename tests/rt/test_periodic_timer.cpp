@@ -116,7 +116,13 @@ TEST(PeriodicTimer, SignalDuringSleepDoesNotWakeEarly) {
   const std::int64_t woke = monotonic_now_ns();
   interrupter.join();
   sigaction(SIGUSR1, &old, nullptr);
+#ifdef __SANITIZE_THREAD__
+  // ThreadSanitizer defers handlers and merges a signal that arrives while one is pending, so
+  // only "at least one interrupted the sleep" can be checked there.
+  EXPECT_GE(g_signals.load(), 1);
+#else
   EXPECT_EQ(g_signals.load(), 2);
+#endif
   EXPECT_EQ(w.cycle, 1U);
   EXPECT_GE(woke, w.deadline_ns);
   EXPECT_GE(w.lateness_ns, 0);
