@@ -8,6 +8,7 @@
 
 #include "daemon/config/binder.hpp"
 #include "daemon/config/keys_can.hpp"
+#include "tests/support/config_section.hpp"
 
 namespace scp::config {
 namespace {
@@ -16,21 +17,11 @@ using drivers::can::ByteOrder;
 using drivers::can::CanSettings;
 
 CanSettings load(const std::string& yaml) {
-  Binder root = Binder::reading(YAML::Load(yaml), "test.yaml");
-  Binder can = root.section("can", "CAN driver");
-  CanSettings out;
-  declare_can_keys(can, out);
-  root.reject_unknown_keys();
-  return out;
+  return test::load_section<CanSettings>(yaml, "can", declare_can_keys);
 }
 
 std::string error_of(const std::string& yaml) {
-  try {
-    load(yaml);
-  } catch (const ConfigError& e) {
-    return e.what();
-  }
-  return "";
+  return test::section_error<CanSettings>(yaml, "can", declare_can_keys, "");
 }
 
 TEST(KeysCan, DefaultsAreTheDefaultLayout) {

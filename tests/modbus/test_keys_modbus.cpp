@@ -7,6 +7,7 @@
 
 #include "daemon/config/binder.hpp"
 #include "daemon/config/keys_modbus.hpp"
+#include "tests/support/config_section.hpp"
 
 namespace scp::config {
 namespace {
@@ -14,21 +15,11 @@ namespace {
 using drivers::modbus::ModbusSettings;
 
 ModbusSettings load(const std::string& yaml) {
-  Binder root = Binder::reading(YAML::Load(yaml), "test.yaml");
-  Binder m = root.section("modbus", "test");
-  ModbusSettings out;
-  declare_modbus_keys(m, out);
-  root.reject_unknown_keys();
-  return out;
+  return test::load_section<ModbusSettings>(yaml, "modbus", declare_modbus_keys);
 }
 
 std::string error_of(const std::string& yaml) {
-  try {
-    load(yaml);
-  } catch (const ConfigError& e) {
-    return e.what();
-  }
-  return "(no error)";
+  return test::section_error<ModbusSettings>(yaml, "modbus", declare_modbus_keys, "(no error)");
 }
 
 TEST(ModbusKeys, FullMapIsRead) {
