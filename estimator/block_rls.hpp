@@ -21,6 +21,11 @@
 // It is stable for any h ≤ 1 s: the eigenvalues of (R + w_sᵀw_s)⁻¹ w_sᵀw_s lie in [0, 1). The
 // O(h) step error changes only the convergence rate, never the fixed point ε = 0.
 //
+// Known parameters: a parameter marked known (free_i = 0) stays at θ0_i. Its regressor column
+// is dropped from the law, so with ε = a − w θ̂ computed by the caller the known term moves to
+// the measured side: the block is exactly the least-squares law of the remaining parameters.
+// R keeps the known rows and columns decoupled (zero off-diagonal), so they never move ϑ.
+//
 // No allocation: every Eigen object here is fixed-size.
 
 #include <Eigen/Cholesky>
@@ -56,6 +61,7 @@ class BlockRls {
     double beta = 3.0;  // filter pole: the correlation time 1/β used by sigma()
     Vec scale = Vec::Ones();
     Vec theta0 = Vec::Zero();
+    Vec free = Vec::Ones();  // 1: estimated; 0: known, held at theta0
   };
 
   BlockRls() { reset(); }
@@ -73,7 +79,7 @@ class BlockRls {
   // w: filtered regressor row in θ coordinates; eps: prediction error a_f − w θ̂ (eq. (20)),
   // computed by the caller before this update.
   void step(const Row& w, double eps, const ForgettingStep& f) noexcept {
-    const Row ws = w.cwiseProduct(s_.scale.transpose());
+    const Row ws = w.cwiseProduct(s_.scale.transpose()).cwiseProduct(s_.free.transpose());
     const Mat wtw = ws.transpose() * ws;
     const Mat a = info_ + wtw;
     const Vec dv = Eigen::LDLT<Mat>(a).solve(ws.transpose() * eps);
@@ -91,7 +97,14 @@ class BlockRls {
     refresh_diagnostics();
   }
 
-  Vec theta() const noexcept { return vartheta_.cwiseProduct(s_.scale); }
+  // A known parameter is theta0 exactly ((θ0/D)·D may differ from θ0 by an ulp).
+  Vec theta() const noexcept {
+    Vec t = vartheta_.cwiseProduct(s_.scale);
+    for (int i = 0; i < N; ++i) {
+      if (s_.free(i) < 0.5) t(i) = s_.theta0(i);
+    }
+    return t;
+  }
   double predict(const Row& w) const noexcept { return w.dot(theta()); }
 
   // σ_i = sqrt(mean ε² · P_ii / β), θ coordinates. The filter makes ε correlated over about 1/β,
@@ -114,7 +127,9 @@ class BlockRls {
   }
   // Caller validated: finite, symmetric, SPD. The window is taken as saturated (1/λP).
   void restore(const Vec& theta, const Mat& info_theta, double eps2_mean) noexcept {
-    vartheta_ = theta.cwiseQuotient(s_.scale);
+    // A known parameter keeps the configured value, not the checkpoint's.
+    vartheta_ = (theta.cwiseProduct(s_.free) + s_.theta0.cwiseProduct(Vec::Ones() - s_.free))
+                    .cwiseQuotient(s_.scale);
     info_ = s_.scale.asDiagonal() * info_theta * s_.scale.asDiagonal();
     info_ = 0.5 * (info_ + info_.transpose()).eval();
     eps2_mean_ = eps2_mean;
@@ -126,8 +141,26 @@ class BlockRls {
   const Mat& info_scaled() const noexcept { return info_; }
 
  private:
+  // Known rows and columns of R: zero off the diagonal, and on it the largest free diagonal
+  // entry, so that λ_min(R) and P_ii describe the free parameters only.
+  void decouple_known() noexcept {
+    if (s_.free.minCoeff() > 0.5) return;
+    double d = 0.0;
+    for (int i = 0; i < N; ++i) {
+      if (s_.free(i) > 0.5) d = std::max(d, info_(i, i));
+    }
+    if (!(d > 0.0)) d = 1.0 / s_.p0;  // every parameter known
+    for (int i = 0; i < N; ++i) {
+      if (s_.free(i) > 0.5) continue;
+      info_.row(i).setZero();
+      info_.col(i).setZero();
+      info_(i, i) = d;
+    }
+  }
+
   void refresh_diagnostics() noexcept {
     const double r_min = 1.0 / s_.p_max;
+    decouple_known();
     Eigen::SelfAdjointEigenSolver<Mat> es;
     es.compute(info_, Eigen::EigenvaluesOnly);
     double l_min = es.eigenvalues()(0);
@@ -140,11 +173,15 @@ class BlockRls {
       info_ = es.eigenvectors() * lifted.asDiagonal() * es.eigenvectors().transpose();
       info_ = 0.5 * (info_ + info_.transpose()).eval();
       l_min = lifted.minCoeff();
+      decouple_known();  // the rebuilt R carries rounding-level coupling into known rows
     }
     // P = R⁻¹ only for its diagonal; fixed-size, no allocation.
     const Mat p = Eigen::LDLT<Mat>(info_).solve(Mat::Identity());
-    sigma_ =
-        (eps2_mean_ * p.diagonal().array().abs() / s_.beta).sqrt().matrix().cwiseProduct(s_.scale);
+    sigma_ = (eps2_mean_ * p.diagonal().array().abs() / s_.beta)
+                 .sqrt()
+                 .matrix()
+                 .cwiseProduct(s_.scale)
+                 .cwiseProduct(s_.free);
     p_max_eig_ = 1.0 / l_min;
     excitation_ = window_ > 0.0 ? std::max(0.0, (l_min - r_min) / window_) : 0.0;
   }

@@ -30,6 +30,8 @@ void validate_config(const EstimatorConfig& c) {
   constexpr double inf = INFINITY;
   check("beta", c.beta, 0.0, true, 1e4, "rad/s");
   check("forgetting", c.forgetting, 0.0, true, 1e3, "1/s");
+  check("forgetting_mechanical", c.forgetting_mechanical, 0.0, false, 1e3,
+        "1/s (0: the same as forgetting)");
   check("p_max", c.p_max, 0.0, true, 1e300, "");
   check("p0", c.p0, 0.0, true, c.p_max, "(must not exceed p_max)");
   for (int i = 0; i < 6; ++i) {

@@ -8,14 +8,19 @@
 namespace scp::estimator {
 namespace {
 
+double mech_forgetting(const EstimatorConfig& c) {
+  return c.forgetting_mechanical > 0.0 ? c.forgetting_mechanical : c.forgetting;
+}
+
 BlockRls<4>::Settings mech_settings(const EstimatorConfig& c) {
   BlockRls<4>::Settings s;
-  s.forgetting = c.forgetting;
+  s.forgetting = mech_forgetting(c);
   s.p0 = c.p0;
   s.p_max = c.p_max;
   s.beta = c.beta;
   s.scale = c.scale.head<4>();
   s.theta0 = c.theta0.head<4>();
+  for (int i = 0; i < 4; ++i) s.free(i) = c.known[static_cast<std::size_t>(i)] ? 0.0 : 1.0;
   return s;
 }
 
@@ -27,6 +32,7 @@ BlockRls<2>::Settings thermal_settings(const EstimatorConfig& c) {
   s.beta = c.beta;
   s.scale = c.scale.tail<2>();
   s.theta0 = c.theta0.tail<2>();
+  for (int i = 0; i < 2; ++i) s.free(i) = c.known[static_cast<std::size_t>(4 + i)] ? 0.0 : 1.0;
   return s;
 }
 
@@ -135,7 +141,8 @@ UpdateOutcome Estimator::update(const Measurement& m) noexcept {
   }
   if (h != h_cached_) {
     hold_ = HoldCoefficients::make(c.beta, h);
-    forget_ = ForgettingStep::make(c.forgetting, h);
+    forget_mech_ = ForgettingStep::make(mech_forgetting(c), h);
+    forget_thermal_ = ForgettingStep::make(c.forgetting, h);
     h_cached_ = h;
   }
 
@@ -177,8 +184,8 @@ UpdateOutcome Estimator::update(const Measurement& m) noexcept {
   af_hat << mech_.predict(w_mech), thermal_.predict(w_thermal);
   const Vector2 eps = af - af_hat;  // eq. (20)
 
-  mech_.step(w_mech, eps(0), forget_);
-  thermal_.step(w_thermal, eps(1), forget_);
+  mech_.step(w_mech, eps(0), forget_mech_);
+  thermal_.step(w_thermal, eps(1), forget_thermal_);
 
   estimate_.t = m.t;
   estimate_.af = af;
@@ -198,10 +205,11 @@ void Estimator::refresh_estimate() noexcept {
   e.p_max_eig_thermal = thermal_.p_max_eig();
   // Guard: right after reset ε and σ are ~0 before anything was learned; require at least one
   // forgetting time constant of data, (1 − e^{−1})/λP of window.
-  const double min_window = (1.0 - std::exp(-1.0)) / config_.forgetting;
   const auto converged = [&](int first, int n, double window) {
-    if (window < min_window) return false;
+    const double forgetting = first == 0 ? mech_forgetting(config_) : config_.forgetting;
+    if (window < (1.0 - std::exp(-1.0)) / forgetting) return false;
     for (int i = first; i < first + n; ++i) {
+      if (config_.known[static_cast<std::size_t>(i)]) continue;  // σ = 0, and θ0 may be 0
       if (!(e.sigma(i) < config_.converged_rel_sigma * std::abs(e.theta_hat(i)))) return false;
     }
     return true;

@@ -19,6 +19,7 @@
 //   rate, never the fixed point ε = 0.
 // - ε = a_f − W_f θ̂ uses θ̂ before this sample's update.
 
+#include <array>
 #include <cstdint>
 
 #include "estimator/block_rls.hpp"
@@ -43,10 +44,17 @@ enum class VoltageHold { zoh, foh };
 struct EstimatorConfig {
   double beta = 3.0;        // rad/s, filter pole, eqs. (9)-(15); (0, 1e4]
   double forgetting = 0.8;  // λP, 1/s, eq. (25); (0, 1e3]
-  double p0 = 100.0;        // P(0) = p0·diag(scale)² (paper: 100·I with scale = 1); (0, p_max]
-  double p_max = 1e10;      // bound on P in scaled coordinates (information floor 1/p_max)
+  // λP of the mechanical block alone; 0 = `forgetting`. Separating b from α1 needs T̄ to change
+  // within the window (columns ẋ and T̄ẋ), which takes the thermal time scale, not 1/0.8 s.
+  double forgetting_mechanical = 0.0;
+  double p0 = 100.0;    // P(0) = p0·diag(scale)² (paper: 100·I with scale = 1); (0, p_max]
+  double p_max = 1e10;  // bound on P in scaled coordinates (information floor 1/p_max)
   Vector6 theta0 = Vector6::Zero();  // initial θ̂, finite
   Vector6 scale = Vector6::Ones();  // parameter scale D: θ = D·ϑ; each > 0. ≈|θ| is sensible.
+  // Known parameters are held at theta0 and leave the regression (block_rls.hpp). The data pin
+  // down ratios such as b/k far better than the common scale of θ1..θ4 (PAPER-NOTES, "Noise"):
+  // one known mechanical parameter, e.g. k/m from a static stiffness test, fixes that scale.
+  std::array<bool, 6> known{};
   VoltageHold voltage_hold = VoltageHold::zoh;
   double max_gap_periods = 10;   // a gap larger than this many nominal periods restarts the filters
   double nominal_period = 1e-3;  // s
@@ -140,7 +148,8 @@ class Estimator {
 
   double h_cached_ = -1.0;
   HoldCoefficients hold_{};
-  ForgettingStep forget_{};
+  ForgettingStep forget_mech_{};
+  ForgettingStep forget_thermal_{};
 
   Estimate estimate_{};
 };

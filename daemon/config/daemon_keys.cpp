@@ -3,8 +3,10 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <cstdio>
 #include <fstream>
 #include <sstream>
+#include <string>
 
 #include "daemon/config/binder.hpp"
 #include "daemon/config/daemon_config.hpp"
@@ -124,6 +126,9 @@ void declare_driver(Binder driver, DriverSelection& out, const ActuatorSettings&
 void declare_estimator(Binder est, estimator::EstimatorConfig& out) {
   est.number("beta", out.beta, 3.0, 1e-3, 1e4, "filter pole β in rad/s, eqs. (9)-(15)");
   est.number("forgetting", out.forgetting, 0.8, 1e-6, 1e3, "forgetting rate λP in 1/s, eq. (25)");
+  est.number("forgetting_mechanical", out.forgetting_mechanical, 0.0, 0.0, 1e3,
+             "λP of the mechanical block θ1..θ4 alone, 1/s; 0 = forgetting. Telling b from α1 "
+             "needs T̄ to change within the window: use about 1/(the thermal time constant)");
   est.number("p0", out.p0, 100.0, 1e-12, 1e30,
              "P(0) = p0·diag(scale)²; the paper: 100 with scale all 1");
   est.number("p_max", out.p_max, 1e10, 1e-12, 1e30,
@@ -136,6 +141,19 @@ void declare_estimator(Binder est, estimator::EstimatorConfig& out) {
   est.numbers("scale", scale, {1, 1, 1, 1, 1, 1}, 6, 1e-12, 1e12,
               "parameter scale D (θ = D·ϑ), about |θ| is sensible; the paper: ones");
   for (int i = 0; i < 6; ++i) out.scale[i] = scale[static_cast<std::size_t>(i)];
+  std::vector<double> known;
+  est.numbers("known", known, {0, 0, 0, 0, 0, 0}, 6, 0, 1,
+              "1 = θ_i is known and held at theta0 (e.g. k/m from a static stiffness test: it "
+              "fixes the scale of θ1..θ4 that the data barely show); 0 = estimated");
+  for (std::size_t i = 0; i < 6; ++i) {
+    if (known[i] != 0.0 && known[i] != 1.0) {
+      char value[32];
+      std::snprintf(value, sizeof value, "%g", known[i]);
+      est.fail("known", "known[" + std::to_string(i) + "] is " + value +
+                            "; each entry is 0 (estimated) or 1 (known, held at theta0)");
+    }
+    out.known[i] = known[i] == 1.0;
+  }
   std::string hold;
   est.choice("voltage_hold", hold, "zoh", {"zoh", "foh"},
              "zoh: the voltage is held by a DAC over each period (exact); foh: interpolated");

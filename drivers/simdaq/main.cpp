@@ -1,10 +1,14 @@
 // scp-simdaq: the simulated SCP actuator served as a Modbus TCP server, a Modbus RTU slave or a
 // CAN node, with the register map of a daemon config file. See docs/simdaq.md.
 
+#include <sched.h>
+
 #include <CLI/CLI.hpp>
 #include <atomic>
+#include <cerrno>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <string>
 
@@ -34,6 +38,21 @@ void install_signal_handlers() {
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
   std::signal(SIGPIPE, SIG_IGN);  // a client vanishing mid-reply is not a reason to die
+}
+
+// A DAQ answers in bounded time; an ordinary process on a loaded machine does not. With
+// --priority the simulated DAQ is scheduled like the daemon's loop, so late replies seen by the
+// daemon come from the transport, not from scp-simdaq waiting for a CPU.
+void set_realtime_priority(int priority) {
+  if (priority <= 0) return;
+  sched_param param{};
+  param.sched_priority = priority;
+  if (sched_setscheduler(0, SCHED_FIFO, &param) != 0) {
+    std::fprintf(stderr,
+                 "scp-simdaq: warning: SCHED_FIFO priority %d refused (%s); running with ordinary "
+                 "scheduling. Run as root or grant CAP_SYS_NICE.\n",
+                 priority, std::strerror(errno));
+  }
 }
 
 }  // namespace
@@ -78,6 +97,10 @@ int main(int argc, char** argv) {
                "of wall time");
   app.add_option("--command-log", options.command_log,
                  "write one line step,wall_s,volts per voltage command received");
+  int priority = 0;
+  app.add_option("--priority", priority,
+                 "SCHED_FIFO priority 1-99 for scp-simdaq (default 0: ordinary scheduling)")
+      ->check(CLI::Range(0, 99));
   app.add_option("--duration", options.duration_s, "exit after S seconds (0 = until Ctrl-C)");
   CLI11_PARSE(app, argc, argv);
 
@@ -105,6 +128,7 @@ int main(int argc, char** argv) {
     }
     if (!device.empty()) options.map.device = device;
     install_signal_handlers();
+    set_realtime_priority(priority);
 
     if (transport == "can") {
 #if defined(SCP_SIMDAQ_WITH_CAN)

@@ -76,6 +76,38 @@ TEST(Config, CrossKeyChecks) {
   EXPECT_NE(error_of("estimator: {p0: 10, p_max: 1}\n").find("p_max"), std::string::npos);
 }
 
+// estimator.known: six entries, each 0 (estimated) or 1 (known, held at theta0).
+TEST(Config, KnownParametersAreZeroOrOne) {
+  const auto cfg = load_config_text("estimator:\n  known: [0, 0, 1, 0, 0, 0]\n", "test.yaml");
+  for (std::size_t i = 0; i < 6; ++i) EXPECT_EQ(cfg.estimator.known[i], i == 2) << i;
+  const auto none = load_config_text("", "test.yaml");
+  for (std::size_t i = 0; i < 6; ++i) EXPECT_FALSE(none.estimator.known[i]) << i;
+
+  // 2: outside [0, 1], refused by the list's range check, naming the entry.
+  std::string e = error_of("estimator:\n  known: [0, 0, 2, 0, 0, 0]\n");
+  EXPECT_NE(e.find("test.yaml:2"), std::string::npos) << e;
+  EXPECT_NE(e.find("estimator.known[2]"), std::string::npos) << e;
+  EXPECT_NE(e.find("[0, 1]"), std::string::npos) << e;
+  // 0.5: in range but neither 0 nor 1.
+  e = error_of("estimator:\n  known: [0, 0, 0.5, 0, 0, 0]\n");
+  EXPECT_NE(e.find("estimator.known"), std::string::npos) << e;
+  EXPECT_NE(e.find("known[2] is 0.5"), std::string::npos) << e;
+  EXPECT_NE(e.find("0.5"), std::string::npos) << e;
+  EXPECT_NE(error_of("estimator:\n  known: [0, 0, 1]\n").find("list of 6 numbers"),
+            std::string::npos);
+  EXPECT_NE(error_of("estimator:\n  known: [0, 0, yes, 0, 0, 0]\n").find("estimator.known[2]"),
+            std::string::npos);
+}
+
+TEST(Config, MechanicalForgetting) {
+  EXPECT_EQ(load_config_text("", "test.yaml").estimator.forgetting_mechanical, 0.0);
+  const auto cfg = load_config_text("estimator:\n  forgetting_mechanical: 0.05\n", "test.yaml");
+  EXPECT_EQ(cfg.estimator.forgetting_mechanical, 0.05);
+  const std::string e = error_of("estimator:\n  forgetting_mechanical: -0.1\n");
+  EXPECT_NE(e.find("test.yaml:2"), std::string::npos) << e;
+  EXPECT_NE(e.find("estimator.forgetting_mechanical"), std::string::npos) << e;
+}
+
 TEST(Config, ReferenceListsEveryDeclaredKeyOnce) {
   const std::string ref = config_reference_markdown();
   for (const char* key : {"`loop.period_s`", "`estimator.beta`",

@@ -24,114 +24,30 @@
 #include <thread>
 #include <vector>
 
+#include "tests/support/child_process.hpp"
+
 namespace scp::test {
 
 inline const std::string kDaemon = SCP_DAEMON_PATH;
 inline const std::string kSimdaq = SCP_SIMDAQ_PATH;
 
-// A program started with stdout and stderr on one pipe. `inherit_fd` ≥ 0 is passed as fd 3.
-class Proc {
- public:
-  explicit Proc(const std::vector<std::string>& argv, int inherit_fd = -1) {
-    int fds[2];
-    if (pipe2(fds, O_CLOEXEC) != 0) return;
-    pid_ = fork();
-    if (pid_ == 0) {
-      dup2(fds[1], 1);
-      dup2(fds[1], 2);
-      if (inherit_fd >= 0) {
-        if (inherit_fd == 3) {
-          fcntl(3, F_SETFD, 0);
-        } else {
-          dup2(inherit_fd, 3);  // dup2 clears FD_CLOEXEC on the copy
-        }
-      }
-      std::vector<char*> args;
-      for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-      args.push_back(nullptr);
-      execv(args[0], args.data());
-      _exit(127);
-    }
-    ::close(fds[1]);
-    out_ = fds[0];
-    fcntl(out_, F_SETFL, O_NONBLOCK);
+// Real-time runs: scp-simdaq and socat stand in for hardware that answers in bounded time, so as
+// root they run SCHED_FIFO 60, below the daemon's loop (80); a loaded CI machine then delays
+// neither of them by whole milliseconds. Without root they run ordinarily.
+inline constexpr int kPeerPriority = 60;
+inline std::vector<std::string> simdaq_realtime(std::vector<std::string> args) {
+  args.insert(args.begin(), kSimdaq);
+  if (geteuid() == 0) {
+    args.push_back("--priority");
+    args.push_back(std::to_string(kPeerPriority));
   }
-  ~Proc() {
-    stop(SIGKILL);
-    if (out_ >= 0) ::close(out_);
-  }
-  Proc(const Proc&) = delete;
-  Proc& operator=(const Proc&) = delete;
-
-  pid_t pid() const { return pid_; }
-  bool running() {
-    if (pid_ <= 0) return false;
-    int status = 0;
-    if (waitpid(pid_, &status, WNOHANG) == pid_) {
-      pid_ = -1;
-      status_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-      return false;
-    }
-    return true;
-  }
-
-  // Output so far plus what arrives until `pattern` appears or the timeout passes.
-  bool wait_for(const std::string& pattern, double timeout_s) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-    while (output_.find(pattern) == std::string::npos) {
-      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
-          end - std::chrono::steady_clock::now());
-      if (left.count() <= 0) return false;
-      pollfd p{out_, POLLIN, 0};
-      if (poll(&p, 1, static_cast<int>(std::min<long long>(left.count(), 100))) <= 0) continue;
-      if (!drain()) return output_.find(pattern) != std::string::npos;
-    }
-    return true;
-  }
-  const std::string& output() {
-    drain();
-    return output_;
-  }
-  // Waits for the exit (up to timeout_s); returns the exit status or -1 on timeout.
-  int wait_exit(double timeout_s) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-    while (std::chrono::steady_clock::now() < end) {
-      drain();
-      if (!running()) {
-        drain();
-        return status_;
-      }
-      usleep(5000);
-    }
-    return -1;
-  }
-  void stop(int sig) {
-    if (pid_ <= 0) return;
-    kill(pid_, sig);
-    int status = 0;
-    waitpid(pid_, &status, 0);
-    status_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    pid_ = -1;
-    drain();
-  }
-
- private:
-  bool drain() {
-    char buf[4096];
-    for (;;) {
-      const ssize_t n = ::read(out_, buf, sizeof buf);
-      if (n > 0) {
-        output_.append(buf, static_cast<std::size_t>(n));
-        continue;
-      }
-      return n < 0;  // 0 = EOF
-    }
-  }
-  pid_t pid_ = -1;
-  int out_ = -1;
-  int status_ = -1;
-  std::string output_;
-};
+  return args;
+}
+inline std::vector<std::string> with_realtime_priority(std::vector<std::string> argv) {
+  if (geteuid() == 0)
+    argv.insert(argv.begin(), {"/usr/bin/chrt", "-f", std::to_string(kPeerPriority)});
+  return argv;
+}
 
 // A temporary directory removed at the end of the test.
 class TempDir {
@@ -156,7 +72,8 @@ class TempDir {
 };
 
 // A socketpair standing in for a CAN bus (the kernel here has no SocketCAN): SEQPACKET keeps one
-// can_frame per message, as a CAN_RAW socket does. Both ends close-on-exec; Proc passes one on.
+// can_frame per message, as a CAN_RAW socket does. Both ends close-on-exec; ChildProcess passes one
+// on.
 struct CanWire {
   int daemon = -1;
   int node = -1;

@@ -18,7 +18,7 @@ struct Checked {
 
 Checked check(const TempDir& dir, const std::string& yaml) {
   const std::string path = dir.write("check.yaml", yaml);
-  Proc p({kDaemon, "--check-config", path});
+  ChildProcess p({kDaemon, "--check-config", path});
   const int rc = p.wait_exit(20.0);
   return {rc, p.output()};
 }
@@ -40,7 +40,7 @@ TEST(E2eConfig, TheTestConfigurationsAreValid) {
   EXPECT_EQ(check(dir, modbus_rtu_yaml(setup_in(dir), "/dev/null")).rc, 0);
   EXPECT_EQ(check(dir, can_yaml(setup_in(dir), 0.0)).rc, 0);
   for (const char* example : {"modbus-tcp.yaml", "modbus-rtu.yaml", "can.yaml"}) {
-    Proc p({kDaemon, "--check-config", std::string(SCP_SOURCE_DIR) + "/config/" + example});
+    ChildProcess p({kDaemon, "--check-config", std::string(SCP_SOURCE_DIR) + "/config/" + example});
     EXPECT_EQ(p.wait_exit(20.0), 0) << example << ": " << p.output();
   }
 }

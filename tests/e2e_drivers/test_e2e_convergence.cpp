@@ -34,7 +34,8 @@ std::array<double, 6> rel_error(const nlohmann::json& s) {
 }
 
 nlohmann::json run_offline(const std::string& config) {
-  Proc daemon({kDaemon, "--config", config, "--offline", "--duration", std::to_string(kDuration)});
+  ChildProcess daemon(
+      {kDaemon, "--config", config, "--offline", "--duration", std::to_string(kDuration)});
   const int rc = daemon.wait_exit(100.0);
   EXPECT_EQ(rc, 0) << daemon.output();
   return last_json_line(daemon.output());
@@ -72,7 +73,7 @@ TEST(E2eConvergence, ModbusTcpLockstepFloat32) {
   TempDir dir;
   RunSetup setup{.socket_path = dir.file("sock"), .state_dir = dir.path().string()};
   const std::string sd_cfg = dir.write("simdaq.yaml", modbus_tcp_yaml(setup, 1502));
-  Proc simdaq({kSimdaq, "--config", sd_cfg, "--listen", "127.0.0.1:0", "--lockstep"});
+  ChildProcess simdaq({kSimdaq, "--config", sd_cfg, "--listen", "127.0.0.1:0", "--lockstep"});
   ASSERT_TRUE(simdaq.wait_for("listening on", 10.0)) << simdaq.output();
   const int port = printed_port(simdaq.output());
   ASSERT_GT(port, 0) << simdaq.output();
@@ -83,13 +84,13 @@ TEST(E2eConvergence, ModbusTcpLockstepFloat32) {
 
 TEST(E2eConvergence, ModbusRtuOverAPtyPairLockstepFloat32) {
   TempDir dir;
-  Proc socat({"/usr/bin/socat", "-d", "-d", "pty,raw,echo=0", "pty,raw,echo=0"});
+  ChildProcess socat({"/usr/bin/socat", "-d", "-d", "pty,raw,echo=0", "pty,raw,echo=0"});
   if (!socat.wait_for("starting data transfer", 10.0)) GTEST_SKIP() << "socat: " << socat.output();
   const auto ptys = printed_ptys(socat.output());
   ASSERT_EQ(ptys.size(), 2U) << socat.output();
   RunSetup setup{.socket_path = dir.file("sock"), .state_dir = dir.path().string()};
   const std::string sd_cfg = dir.write("simdaq.yaml", modbus_rtu_yaml(setup, ptys[0]));
-  Proc simdaq({kSimdaq, "--config", sd_cfg, "--lockstep"});
+  ChildProcess simdaq({kSimdaq, "--config", sd_cfg, "--lockstep"});
   ASSERT_TRUE(simdaq.wait_for("serving", 10.0)) << simdaq.output();
   // A pty has no baud rate: the run goes as fast as the two processes exchange frames.
   const auto s = run_offline(dir.write("d.yaml", modbus_rtu_yaml(setup, ptys[1])));
@@ -103,11 +104,13 @@ TEST(E2eConvergence, CanFramesOverASocketpairLockstepInt32) {
   ASSERT_GE(wire.daemon, 0);
   RunSetup setup{.socket_path = dir.file("sock"), .state_dir = dir.path().string()};
   const std::string cfg = dir.write("can.yaml", can_yaml(setup, 1.0));
-  Proc node({kSimdaq, "--config", cfg, "--transport", "can", "--device", "fd:3", "--lockstep"},
-            wire.node);
+  ChildProcess node(
+      {kSimdaq, "--config", cfg, "--transport", "can", "--device", "fd:3", "--lockstep"},
+      wire.node);
   ASSERT_TRUE(node.wait_for("CAN node on fd 3", 10.0)) << node.output();
-  Proc daemon({kDaemon, "--config", cfg, "--offline", "--duration", std::to_string(kDuration)},
-              wire.daemon);
+  ChildProcess daemon(
+      {kDaemon, "--config", cfg, "--offline", "--duration", std::to_string(kDuration)},
+      wire.daemon);
   ::close(wire.node);  // only the children hold the ends now: a hang-up ends the node
   wire.node = -1;
   ASSERT_EQ(daemon.wait_exit(100.0), 0) << daemon.output();

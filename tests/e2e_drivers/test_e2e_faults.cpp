@@ -40,14 +40,15 @@ TEST(E2eFaults, NanTemperatureOverModbusGivesZeroVoltsAtTheNextWriteAndLatches) 
                  .sim_fault = "nan_temperature",
                  .sim_fault_start_s = 1.0};
   const std::string log = dir.file("commands.csv");
-  Proc simdaq({kSimdaq, "--config", dir.write("sd.yaml", modbus_tcp_yaml(setup, 1502)), "--listen",
-               "127.0.0.1:0", "--lockstep", "--command-log", log});
+  ChildProcess simdaq({kSimdaq, "--config", dir.write("sd.yaml", modbus_tcp_yaml(setup, 1502)),
+                       "--listen", "127.0.0.1:0", "--lockstep", "--command-log", log});
   ASSERT_TRUE(simdaq.wait_for("listening on", 10.0)) << simdaq.output();
   RunSetup daemon_setup = setup;
   daemon_setup.sim_fault = "none";
-  Proc daemon({kDaemon, "--config",
-               dir.write("d.yaml", modbus_tcp_yaml(daemon_setup, printed_port(simdaq.output()))),
-               "--offline", "--duration", "2"});
+  ChildProcess daemon(
+      {kDaemon, "--config",
+       dir.write("d.yaml", modbus_tcp_yaml(daemon_setup, printed_port(simdaq.output()))),
+       "--offline", "--duration", "2"});
   ASSERT_EQ(daemon.wait_exit(60.0), 0) << daemon.output();
   const auto s = last_json_line(daemon.output());
   EXPECT_EQ(s["state"], "FAULT");
@@ -65,15 +66,15 @@ TEST(E2eFaults, OutOfRangeTemperatureOverCanGivesZeroVoltsAtTheNextFrame) {
                  .sim_fault = "temperature_out_of_range",
                  .sim_fault_start_s = 1.0};
   const std::string log = dir.file("commands.csv");
-  Proc node({kSimdaq, "--config", dir.write("node.yaml", can_yaml(setup, 1.0)), "--transport",
-             "can", "--device", "fd:3", "--lockstep", "--command-log", log},
-            wire.node);
+  ChildProcess node({kSimdaq, "--config", dir.write("node.yaml", can_yaml(setup, 1.0)),
+                     "--transport", "can", "--device", "fd:3", "--lockstep", "--command-log", log},
+                    wire.node);
   ASSERT_TRUE(node.wait_for("CAN node on fd 3", 10.0)) << node.output();
   RunSetup daemon_setup = setup;
   daemon_setup.sim_fault = "none";
-  Proc daemon({kDaemon, "--config", dir.write("d.yaml", can_yaml(daemon_setup, 1.0)), "--offline",
-               "--duration", "2"},
-              wire.daemon);
+  ChildProcess daemon({kDaemon, "--config", dir.write("d.yaml", can_yaml(daemon_setup, 1.0)),
+                       "--offline", "--duration", "2"},
+                      wire.daemon);
   ASSERT_EQ(daemon.wait_exit(60.0), 0) << daemon.output();
   const auto s = last_json_line(daemon.output());
   EXPECT_EQ(s["state"], "FAULT") << s.dump();
@@ -85,14 +86,16 @@ TEST(E2eFaults, OutOfRangeTemperatureOverCanGivesZeroVoltsAtTheNextFrame) {
   expect_zero_after_step(read_command_log(log), 502);
 }
 
-// A real-time daemon on a peer whose fault window opens at 1.5 s for 1 s: the daemon faults
-// (0 V), then recovers by itself and excites again.
+// A real-time daemon on a peer whose fault window opens at 1.5 s: the daemon faults (0 V), then
+// recovers by itself and excites again. The 5 ms period leaves room for a 2 ms Modbus timeout,
+// so that a loaded CI machine's late replies do not mask the injected fault with a timeout one.
 struct RealTimeRun {
+  static constexpr double kModbusTimeout = 0.002;
   TempDir dir;
   RunSetup setup;
   std::string log;
   RealTimeRun() {
-    setup.period_s = 0.002;
+    setup.period_s = 0.005;
     setup.socket_path = dir.file("sock");
     setup.state_dir = dir.path().string();
     setup.recover_after_s = 0.5;
@@ -100,7 +103,8 @@ struct RealTimeRun {
   }
 
   // Polls until RUNNING, then FAULT with `reason`, then RUNNING again; checks the peer's log.
-  void expect_fault_and_recovery(Proc& daemon, const std::string& reason, bool peer_sees_zero) {
+  void expect_fault_and_recovery(ChildProcess& daemon, const std::string& reason,
+                                 bool peer_sees_zero) {
     const auto up = wait_status(setup.socket_path, 10.0,
                                 [](const auto& s) { return state_of(s) == "running"; });
     ASSERT_EQ(state_of(up), "running") << up.dump() << daemon.output();
@@ -135,34 +139,41 @@ struct RealTimeRun {
 
 TEST(E2eFaults, ModbusSlaveThatStopsAnsweringFaultsAndRecovers) {
   RealTimeRun run;
-  Proc simdaq({kSimdaq, "--config", run.dir.write("sd.yaml", modbus_tcp_yaml(run.setup, 1502)),
-               "--listen", "127.0.0.1:0", "--fault-after", "1.5", "--fault-duration", "1",
-               "--command-log", run.log});
+  ChildProcess simdaq(simdaq_realtime(
+      {"--config", run.dir.write("sd.yaml", modbus_tcp_yaml(run.setup, 1502)), "--listen",
+       "127.0.0.1:0", "--fault-after", "1.5", "--fault-duration", "1", "--command-log", run.log}));
   ASSERT_TRUE(simdaq.wait_for("listening on", 10.0)) << simdaq.output();
-  Proc daemon({kDaemon, "--config",
-               run.dir.write("d.yaml", modbus_tcp_yaml(run.setup, printed_port(simdaq.output())))});
+  ChildProcess daemon(
+      {kDaemon, "--config",
+       run.dir.write("d.yaml", modbus_tcp_yaml(run.setup, printed_port(simdaq.output()),
+                                               kFloat32Map, RealTimeRun::kModbusTimeout))});
   run.expect_fault_and_recovery(daemon, "modbus", true);
 }
 
 TEST(E2eFaults, ModbusExceptionRepliesFaultAndRecover) {
   RealTimeRun run;
-  Proc simdaq({kSimdaq, "--config", run.dir.write("sd.yaml", modbus_tcp_yaml(run.setup, 1502)),
-               "--listen", "127.0.0.1:0", "--exception-after", "1.5", "--fault-duration", "1",
-               "--exception-code", "4", "--command-log", run.log});
+  ChildProcess simdaq(
+      simdaq_realtime({"--config", run.dir.write("sd.yaml", modbus_tcp_yaml(run.setup, 1502)),
+                       "--listen", "127.0.0.1:0", "--exception-after", "1.5", "--fault-duration",
+                       "3", "--exception-code", "4", "--command-log", run.log}));
   ASSERT_TRUE(simdaq.wait_for("listening on", 10.0)) << simdaq.output();
-  Proc daemon({kDaemon, "--config",
-               run.dir.write("d.yaml", modbus_tcp_yaml(run.setup, printed_port(simdaq.output())))});
+  ChildProcess daemon(
+      {kDaemon, "--config",
+       run.dir.write("d.yaml", modbus_tcp_yaml(run.setup, printed_port(simdaq.output()),
+                                               kFloat32Map, RealTimeRun::kModbusTimeout))});
   run.expect_fault_and_recovery(daemon, "exception 4", true);
 }
 
 TEST(E2eFaults, ModbusServerKilledAndRestartedMidRun) {
   RealTimeRun run;
   const std::string sd_cfg = run.dir.write("sd.yaml", modbus_tcp_yaml(run.setup, 1502));
-  auto simdaq = std::make_unique<Proc>(
-      std::vector<std::string>{kSimdaq, "--config", sd_cfg, "--listen", "127.0.0.1:0"});
+  auto simdaq = std::make_unique<ChildProcess>(
+      simdaq_realtime({"--config", sd_cfg, "--listen", "127.0.0.1:0"}));
   ASSERT_TRUE(simdaq->wait_for("listening on", 10.0)) << simdaq->output();
   const int port = printed_port(simdaq->output());
-  Proc daemon({kDaemon, "--config", run.dir.write("d.yaml", modbus_tcp_yaml(run.setup, port))});
+  ChildProcess daemon({kDaemon, "--config",
+                       run.dir.write("d.yaml", modbus_tcp_yaml(run.setup, port, kFloat32Map,
+                                                               RealTimeRun::kModbusTimeout))});
   const auto up = wait_status(run.setup.socket_path, 10.0,
                               [](const auto& s) { return state_of(s) == "running"; });
   ASSERT_EQ(state_of(up), "running") << up.dump() << daemon.output();
@@ -171,9 +182,9 @@ TEST(E2eFaults, ModbusServerKilledAndRestartedMidRun) {
                                  [](const auto& s) { return state_of(s) == "fault"; });
   ASSERT_EQ(state_of(fault), "fault") << fault.dump();
   EXPECT_EQ(fault.value("voltage", -1.0), 0.0);
-  simdaq = std::make_unique<Proc>(std::vector<std::string>{kSimdaq, "--config", sd_cfg, "--listen",
-                                                           "127.0.0.1:" + std::to_string(port),
-                                                           "--command-log", run.log});
+  simdaq = std::make_unique<ChildProcess>(
+      simdaq_realtime({"--config", sd_cfg, "--listen", "127.0.0.1:" + std::to_string(port),
+                       "--command-log", run.log}));
   ASSERT_TRUE(simdaq->wait_for("listening on", 10.0)) << simdaq->output();
   const auto back = wait_status(run.setup.socket_path, 15.0,
                                 [](const auto& s) { return state_of(s) == "running"; });
@@ -192,11 +203,12 @@ TEST(E2eFaults, SilentCanNodeFaultsAndRecovers) {
   RealTimeRun run;
   CanWire wire;
   const std::string cfg = run.dir.write("can.yaml", can_yaml(run.setup, 0.0));
-  Proc node({kSimdaq, "--config", cfg, "--transport", "can", "--device", "fd:3", "--fault-after",
-             "1.5", "--fault-duration", "1", "--command-log", run.log},
-            wire.node);
+  ChildProcess node(
+      simdaq_realtime({"--config", cfg, "--transport", "can", "--device", "fd:3", "--fault-after",
+                       "1.5", "--fault-duration", "1", "--command-log", run.log}),
+      wire.node);
   ASSERT_TRUE(node.wait_for("CAN node on fd 3", 10.0)) << node.output();
-  Proc daemon({kDaemon, "--config", cfg}, wire.daemon);
+  ChildProcess daemon({kDaemon, "--config", cfg}, wire.daemon);
   run.expect_fault_and_recovery(daemon, "stale", true);
 }
 
@@ -204,11 +216,12 @@ TEST(E2eFaults, CanBusOffFaultsAndRecoversOnRestart) {
   RealTimeRun run;
   CanWire wire;
   const std::string cfg = run.dir.write("can.yaml", can_yaml(run.setup, 0.0));
-  Proc node({kSimdaq, "--config", cfg, "--transport", "can", "--device", "fd:3", "--fault-after",
-             "1.5", "--fault-duration", "1", "--can-fault", "bus_off", "--command-log", run.log},
-            wire.node);
+  ChildProcess node(simdaq_realtime({"--config", cfg, "--transport", "can", "--device", "fd:3",
+                                     "--fault-after", "1.5", "--fault-duration", "1", "--can-fault",
+                                     "bus_off", "--command-log", run.log}),
+                    wire.node);
   ASSERT_TRUE(node.wait_for("CAN node on fd 3", 10.0)) << node.output();
-  Proc daemon({kDaemon, "--config", cfg}, wire.daemon);
+  ChildProcess daemon({kDaemon, "--config", cfg}, wire.daemon);
   run.expect_fault_and_recovery(daemon, "bus-off", false);
 }
 
@@ -216,11 +229,11 @@ TEST(E2eFaults, CanErrorFramesAreCountedNotAFault) {
   RealTimeRun run;
   CanWire wire;
   const std::string cfg = run.dir.write("can.yaml", can_yaml(run.setup, 0.0));
-  Proc node({kSimdaq, "--config", cfg, "--transport", "can", "--device", "fd:3", "--fault-after",
-             "0.5", "--can-fault", "error_frames"},
-            wire.node);
+  ChildProcess node(simdaq_realtime({"--config", cfg, "--transport", "can", "--device", "fd:3",
+                                     "--fault-after", "0.5", "--can-fault", "error_frames"}),
+                    wire.node);
   ASSERT_TRUE(node.wait_for("CAN node on fd 3", 10.0)) << node.output();
-  Proc daemon({kDaemon, "--config", cfg}, wire.daemon);
+  ChildProcess daemon({kDaemon, "--config", cfg}, wire.daemon);
   const auto up = wait_status(run.setup.socket_path, 10.0,
                               [](const auto& s) { return state_of(s) == "running"; });
   ASSERT_EQ(state_of(up), "running") << up.dump() << daemon.output();

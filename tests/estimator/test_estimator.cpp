@@ -7,6 +7,7 @@
 #include <string>
 
 #include "estimator/estimator.hpp"
+#include "tests/estimator/synthetic_trajectory.hpp"
 
 namespace scp::estimator {
 namespace {
@@ -14,15 +15,7 @@ namespace {
 constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// A smooth, exciting synthetic trajectory (not a plant; only the bookkeeping is tested here).
-Measurement sample_at(int k) {
-  const double t = k * 1e-3;
-  return Measurement{.t = t,
-                     .x = 1e-3 * std::sin(0.7 * t),
-                     .xdot = 0.7e-3 * std::cos(0.7 * t),
-                     .tbar = 20.0 + 10.0 * std::sin(0.3 * t),
-                     .voltage = 1.5 + std::sin(2.0 * t)};
-}
+using test::sample_at;
 
 EstimatorConfig scaled_config() {
   EstimatorConfig c;

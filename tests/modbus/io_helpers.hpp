@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "child_process.hpp"
+#include "tests/support/child_process.hpp"
 
 namespace scp::test {
 

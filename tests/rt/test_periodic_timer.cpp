@@ -72,7 +72,8 @@ TEST(PeriodicTimer, SkipsWholeMissedPeriodsWithoutBursting) {
 }
 
 TEST(PeriodicTimer, MeasuresExecutionTimeAndOverrun) {
-  constexpr std::int64_t kPeriod = 5'000'000;  // 5 ms
+  // 50 ms: the 1.5-period sleep below must not stretch past 2 periods on a loaded machine.
+  constexpr std::int64_t kPeriod = 50'000'000;
   PeriodicTimer timer{std::chrono::nanoseconds(kPeriod)};
   timer.start();
   timer.wait_next();

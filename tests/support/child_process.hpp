@@ -1,6 +1,7 @@
 #pragma once
-// A helper program started by a test (scp-simdaq, the pymodbus server, socat, mbpoll) with its
-// output on a pipe; killed by pid (never by name) when the test ends.
+// A program a test starts (the daemon, scp-simdaq, socat, mbpoll, a pymodbus server) with stdout
+// and stderr on one pipe, killed by pid (never by name) when the test ends, even on failure.
+// `inherit_fd` ≥ 0 is passed to it as fd 3 (the CAN tests' socket pair).
 
 #include <fcntl.h>
 #include <poll.h>
@@ -9,6 +10,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <string>
 #include <vector>
@@ -17,16 +19,20 @@ namespace scp::test {
 
 class ChildProcess {
  public:
-  // Starts argv[0] with stdout (and stderr when merge_stderr) on a pipe.
-  explicit ChildProcess(const std::vector<std::string>& argv, bool merge_stderr = true) {
+  explicit ChildProcess(const std::vector<std::string>& argv, int inherit_fd = -1) {
     int fds[2];
-    if (pipe(fds) != 0) return;
+    if (pipe2(fds, O_CLOEXEC) != 0) return;
     pid_ = fork();
     if (pid_ == 0) {
       dup2(fds[1], 1);
-      if (merge_stderr) dup2(fds[1], 2);
-      ::close(fds[0]);
-      ::close(fds[1]);
+      dup2(fds[1], 2);
+      if (inherit_fd >= 0) {
+        if (inherit_fd == 3) {
+          fcntl(3, F_SETFD, 0);
+        } else {
+          dup2(inherit_fd, 3);  // dup2 clears FD_CLOEXEC on the copy
+        }
+      }
       std::vector<char*> args;
       for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
       args.push_back(nullptr);
@@ -45,8 +51,18 @@ class ChildProcess {
   ChildProcess& operator=(const ChildProcess&) = delete;
 
   pid_t pid() const { return pid_; }
+  bool running() {
+    if (pid_ <= 0) return false;
+    int status = 0;
+    if (waitpid(pid_, &status, WNOHANG) == pid_) {
+      pid_ = -1;
+      status_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+      return false;
+    }
+    return true;
+  }
 
-  // Everything printed so far plus what arrives until `pattern` appears or the timeout passes.
+  // Output so far plus what arrives until `pattern` appears or the timeout passes.
   bool wait_for(const std::string& pattern, double timeout_s) {
     const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
     while (output_.find(pattern) == std::string::npos) {
@@ -54,7 +70,7 @@ class ChildProcess {
           end - std::chrono::steady_clock::now());
       if (left.count() <= 0) return false;
       pollfd p{out_, POLLIN, 0};
-      if (poll(&p, 1, static_cast<int>(left.count())) <= 0) continue;
+      if (poll(&p, 1, static_cast<int>(std::min<long long>(left.count(), 100))) <= 0) continue;
       if (!drain()) return output_.find(pattern) != std::string::npos;
     }
     return true;
@@ -63,16 +79,14 @@ class ChildProcess {
     drain();
     return output_;
   }
-  // Waits for the exit (up to timeout_s); returns the exit status or -1.
+  // Waits for the exit (up to timeout_s); returns the exit status or -1 on timeout.
   int wait_exit(double timeout_s) {
     const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-    while (pid_ > 0 && std::chrono::steady_clock::now() < end) {
+    while (std::chrono::steady_clock::now() < end) {
       drain();
-      int status = 0;
-      if (waitpid(pid_, &status, WNOHANG) == pid_) {
-        pid_ = -1;
+      if (!running()) {
         drain();
-        return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+        return status_;
       }
       usleep(5000);
     }
@@ -83,7 +97,9 @@ class ChildProcess {
     kill(pid_, sig);
     int status = 0;
     waitpid(pid_, &status, 0);
+    status_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
     pid_ = -1;
+    drain();
   }
 
  private:
@@ -100,6 +116,7 @@ class ChildProcess {
   }
   pid_t pid_ = -1;
   int out_ = -1;
+  int status_ = -1;
   std::string output_;
 };
 
