@@ -127,8 +127,8 @@ void declare_estimator(Binder est, estimator::EstimatorConfig& out) {
   est.number("beta", out.beta, 3.0, 1e-3, 1e4, "filter pole β in rad/s, eqs. (9)-(15)");
   est.number("forgetting", out.forgetting, 0.8, 1e-6, 1e3, "forgetting rate λP in 1/s, eq. (25)");
   est.number("forgetting_mechanical", out.forgetting_mechanical, 0.0, 0.0, 1e3,
-             "λP of the mechanical block θ1..θ4 alone, 1/s; 0 = forgetting. Telling b from α1 "
-             "needs T̄ to change within the window: use about 1/(the thermal time constant)");
+             "λP of the mechanical block θ1..θ4 alone, 1/s; 0 = forgetting. Larger follows a "
+             "drifting b with less lag (scripts/soak uses 10), smaller passes less noise");
   est.number("p0", out.p0, 100.0, 1e-12, 1e30,
              "P(0) = p0·diag(scale)²; the paper: 100 with scale all 1");
   est.number("p_max", out.p_max, 1e10, 1e-12, 1e30,
