@@ -150,6 +150,27 @@ TEST(E2eFaults, ModbusSlaveThatStopsAnsweringFaultsAndRecovers) {
   run.expect_fault_and_recovery(daemon, "modbus", true);
 }
 
+// The same dead slave on a serial line (a socat pty pair): timeouts, then the link is dropped
+// and reopened by the reconnect thread until the slave answers again. 10 ms and 4 ms timeouts as
+// in the real-time RTU run (four tty hops per transaction).
+TEST(E2eFaults, ModbusRtuSlaveThatStopsAnsweringFaultsAndRecovers) {
+  RealTimeRun run;
+  run.setup.period_s = 0.01;
+  ChildProcess socat(
+      with_realtime_priority({"/usr/bin/socat", "-d", "-d", "pty,raw,echo=0", "pty,raw,echo=0"}));
+  if (!socat.wait_for("starting data transfer", 10.0)) GTEST_SKIP() << "socat: " << socat.output();
+  const auto ptys = printed_ptys(socat.output());
+  ASSERT_EQ(ptys.size(), 2U) << socat.output();
+  ChildProcess simdaq(
+      simdaq_realtime({"--config", run.dir.write("sd.yaml", modbus_rtu_yaml(run.setup, ptys[0])),
+                       "--fault-after", "1.5", "--fault-duration", "1", "--command-log", run.log}));
+  ASSERT_TRUE(simdaq.wait_for("serving", 10.0)) << simdaq.output();
+  ChildProcess daemon(
+      {kDaemon, "--config",
+       run.dir.write("d.yaml", modbus_rtu_yaml(run.setup, ptys[1], kFloat32Map, 0.004))});
+  run.expect_fault_and_recovery(daemon, "modbus", true);
+}
+
 TEST(E2eFaults, ModbusExceptionRepliesFaultAndRecover) {
   RealTimeRun run;
   ChildProcess simdaq(
