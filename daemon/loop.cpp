@@ -263,6 +263,7 @@ void Loop::publish(const drivers::CycleTime& now) noexcept {
   v.af = to_array<2>(e.af);
   v.af_hat = to_array<2>(e.af_hat);
   v.excitation = to_array<2>(e.excitation);
+  v.p_max_eig = {e.p_max_eig_mech, e.p_max_eig_thermal};
   v.converged = {e.converged_mech, e.converged_thermal};
   v.updates = e.updates;
   v.skipped = e.skipped_nonfinite + e.skipped_range + e.skipped_time;

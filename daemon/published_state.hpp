@@ -50,6 +50,7 @@ struct EstimateView {
   std::array<double, 2> af{};          // filtered signal a_f, eq. (10)
   std::array<double, 2> af_hat{};      // W_f θ̂, eq. (18)
   std::array<double, 2> excitation{};  // per block: mechanical, thermal
+  std::array<double, 2> p_max_eig{};   // per block: largest eigenvalue of P, scaled (≤ p_max)
   std::array<bool, 2> converged{};     // per block
   std::uint64_t updates = 0;
   std::uint64_t skipped = 0;  // samples rejected (non-finite or out of range)

@@ -138,6 +138,10 @@ std::string render_estimate(const EstimateView& estimate) {
   put_finite(excitation, "mechanical", estimate.excitation[0]);
   put_finite(excitation, "thermal", estimate.excitation[1]);
   out["excitation"] = excitation;
+  json p_max_eig = json::object();
+  put_finite(p_max_eig, "mechanical", estimate.p_max_eig[0]);
+  put_finite(p_max_eig, "thermal", estimate.p_max_eig[1]);
+  out["p_max_eig"] = p_max_eig;
   out["converged"] = {{"mechanical", estimate.converged[0]}, {"thermal", estimate.converged[1]}};
   out["updates"] = estimate.updates;
   out["skipped"] = estimate.skipped;

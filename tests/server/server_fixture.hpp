@@ -249,6 +249,7 @@ inline PublishedState sample_state() {
   e.af = {0.01, 0.3};
   e.af_hat = {0.011, 0.31};
   e.excitation = {0.25, 0.75};
+  e.p_max_eig = {4.0e6, 12.5};
   e.converged = {false, true};
   e.updates = 12500;
   e.skipped = 7;

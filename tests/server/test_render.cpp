@@ -99,6 +99,8 @@ TEST(Render, EstimateWithTruthAndPhysical) {
   EXPECT_DOUBLE_EQ(j["af_hat"][0].get<double>(), 0.011);
   EXPECT_DOUBLE_EQ(j["excitation"]["mechanical"].get<double>(), 0.25);
   EXPECT_DOUBLE_EQ(j["excitation"]["thermal"].get<double>(), 0.75);
+  EXPECT_DOUBLE_EQ(j["p_max_eig"]["mechanical"].get<double>(), 4.0e6);
+  EXPECT_DOUBLE_EQ(j["p_max_eig"]["thermal"].get<double>(), 12.5);
   EXPECT_EQ(j["converged"]["mechanical"], false);
   EXPECT_EQ(j["converged"]["thermal"], true);
   EXPECT_EQ(j["updates"], 12500);
