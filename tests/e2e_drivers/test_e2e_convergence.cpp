@@ -99,23 +99,32 @@ TEST(E2eConvergence, ModbusRtuOverAPtyPairLockstepFloat32) {
   expect_converged(s);
 }
 
-TEST(E2eConvergence, CanFramesOverASocketpairLockstepInt32) {
-  TempDir dir;
+// scp-simdaq as a lock-step CAN node and the daemon offline on a socket pair, both reading
+// `config`; returns the daemon's final JSON line ({} when it failed, with the failure recorded).
+nlohmann::json run_can_lockstep(const std::string& config) {
   CanWire wire;
-  ASSERT_GE(wire.daemon, 0);
-  RunSetup setup{.socket_path = dir.file("sock"), .state_dir = dir.path().string()};
-  const std::string cfg = dir.write("can.yaml", can_yaml(setup, 1.0));
+  EXPECT_GE(wire.daemon, 0);
   ChildProcess node(
-      {kSimdaq, "--config", cfg, "--transport", "can", "--device", "fd:3", "--lockstep"},
+      {kSimdaq, "--config", config, "--transport", "can", "--device", "fd:3", "--lockstep"},
       wire.node);
-  ASSERT_TRUE(node.wait_for("CAN node on fd 3", 10.0)) << node.output();
+  if (!node.wait_for("CAN node on fd 3", 10.0)) {
+    ADD_FAILURE() << node.output();
+    return nlohmann::json::object();
+  }
   ChildProcess daemon(
-      {kDaemon, "--config", cfg, "--offline", "--duration", std::to_string(kDuration)},
+      {kDaemon, "--config", config, "--offline", "--duration", std::to_string(kDuration)},
       wire.daemon);
   ::close(wire.node);  // only the children hold the ends now: a hang-up ends the node
   wire.node = -1;
-  ASSERT_EQ(daemon.wait_exit(100.0), 0) << daemon.output();
-  const auto s = last_json_line(daemon.output());
+  const int rc = daemon.wait_exit(100.0);
+  EXPECT_EQ(rc, 0) << daemon.output();
+  return rc == 0 ? last_json_line(daemon.output()) : nlohmann::json::object();
+}
+
+TEST(E2eConvergence, CanFramesOverASocketpairLockstepInt32) {
+  TempDir dir;
+  RunSetup setup{.socket_path = dir.file("sock"), .state_dir = dir.path().string()};
+  const auto s = run_can_lockstep(dir.write("can.yaml", can_yaml(setup, 1.0)));
   report("can int32 (1e-11 m, 1e-6 C)", s);
   expect_converged(s);
 }
@@ -144,21 +153,8 @@ std::string shipped_can_yaml(const RunSetup& setup) {
 
 TEST(E2eConvergence, ShippedCanConfigConverges) {
   TempDir dir;
-  CanWire wire;
-  ASSERT_GE(wire.daemon, 0);
   RunSetup setup{.socket_path = dir.file("sock"), .state_dir = dir.path().string()};
-  const std::string cfg = dir.write("can.yaml", shipped_can_yaml(setup));
-  ChildProcess node(
-      {kSimdaq, "--config", cfg, "--transport", "can", "--device", "fd:3", "--lockstep"},
-      wire.node);
-  ASSERT_TRUE(node.wait_for("CAN node on fd 3", 10.0)) << node.output();
-  ChildProcess daemon(
-      {kDaemon, "--config", cfg, "--offline", "--duration", std::to_string(kDuration)},
-      wire.daemon);
-  ::close(wire.node);
-  wire.node = -1;
-  ASSERT_EQ(daemon.wait_exit(100.0), 0) << daemon.output();
-  const auto s = last_json_line(daemon.output());
+  const auto s = run_can_lockstep(dir.write("can.yaml", shipped_can_yaml(setup)));
   report("config/can.yaml as shipped", s);
   expect_converged(s);
 }
