@@ -102,6 +102,12 @@ struct RealTimeRun {
     log = dir.file("commands.csv");
   }
 
+  // The real-time daemon on a Modbus TCP peer listening on `port`.
+  std::vector<std::string> daemon_argv(int port) {
+    return {kDaemon, "--config",
+            dir.write("d.yaml", modbus_tcp_yaml(setup, port, kFloat32Map, kModbusTimeout))};
+  }
+
   // Polls until RUNNING, then FAULT with `reason`, then RUNNING again; checks the peer's log.
   void expect_fault_and_recovery(ChildProcess& daemon, const std::string& reason,
                                  bool peer_sees_zero) {
@@ -143,10 +149,7 @@ TEST(E2eFaults, ModbusSlaveThatStopsAnsweringFaultsAndRecovers) {
       {"--config", run.dir.write("sd.yaml", modbus_tcp_yaml(run.setup, 1502)), "--listen",
        "127.0.0.1:0", "--fault-after", "1.5", "--fault-duration", "1", "--command-log", run.log}));
   ASSERT_TRUE(simdaq.wait_for("listening on", 10.0)) << simdaq.output();
-  ChildProcess daemon(
-      {kDaemon, "--config",
-       run.dir.write("d.yaml", modbus_tcp_yaml(run.setup, printed_port(simdaq.output()),
-                                               kFloat32Map, RealTimeRun::kModbusTimeout))});
+  ChildProcess daemon(run.daemon_argv(printed_port(simdaq.output())));
   run.expect_fault_and_recovery(daemon, "modbus", true);
 }
 
@@ -178,10 +181,7 @@ TEST(E2eFaults, ModbusExceptionRepliesFaultAndRecover) {
                        "--listen", "127.0.0.1:0", "--exception-after", "1.5", "--fault-duration",
                        "3", "--exception-code", "4", "--command-log", run.log}));
   ASSERT_TRUE(simdaq.wait_for("listening on", 10.0)) << simdaq.output();
-  ChildProcess daemon(
-      {kDaemon, "--config",
-       run.dir.write("d.yaml", modbus_tcp_yaml(run.setup, printed_port(simdaq.output()),
-                                               kFloat32Map, RealTimeRun::kModbusTimeout))});
+  ChildProcess daemon(run.daemon_argv(printed_port(simdaq.output())));
   run.expect_fault_and_recovery(daemon, "exception 4", true);
 }
 
@@ -192,9 +192,7 @@ TEST(E2eFaults, ModbusServerKilledAndRestartedMidRun) {
       simdaq_realtime({"--config", sd_cfg, "--listen", "127.0.0.1:0"}));
   ASSERT_TRUE(simdaq->wait_for("listening on", 10.0)) << simdaq->output();
   const int port = printed_port(simdaq->output());
-  ChildProcess daemon({kDaemon, "--config",
-                       run.dir.write("d.yaml", modbus_tcp_yaml(run.setup, port, kFloat32Map,
-                                                               RealTimeRun::kModbusTimeout))});
+  ChildProcess daemon(run.daemon_argv(port));
   const auto up = wait_status(run.setup.socket_path, 10.0,
                               [](const auto& s) { return state_of(s) == "running"; });
   ASSERT_EQ(state_of(up), "running") << up.dump() << daemon.output();

@@ -8,13 +8,11 @@
 #include <functional>
 
 #include "estimator/estimator.hpp"
+#include "tests/estimator/plant_rig.hpp"
 #include "tests/estimator/test_plant.hpp"
 
 namespace scp::estimator {
 namespace {
-
-constexpr double kPeriod = 1e-3;
-constexpr int kSubsteps = 20;
 
 Vector6 true_theta() {  // Table I by hand, independent of model.cpp
   Vector6 t;
@@ -39,29 +37,8 @@ double max_rel_error(const Vector6& theta_hat) {
   return ((theta_hat - true_theta()).array() / true_theta().array()).abs().maxCoeff();
 }
 
-// Drives plant and estimator from sample k0 to k1 (exclusive). The voltage in sample k is the
-// one the DAC held over (t_{k−1}, t_k], i.e. the command computed at t_{k−1}.
-struct Rig {
-  Estimator est;
-  test::Plant plant;
-  std::int64_t k = 0;
-
-  explicit Rig(const EstimatorConfig& c) : est(c) {
-    est.update(Measurement{.t = 0.0, .x = 0.0, .xdot = 0.0, .tbar = 0.0, .voltage = 0.0});
-  }
-  void run_until(double t_end, const std::function<double(double)>& voltage,
-                 const std::function<void(const Rig&, double v)>& each = nullptr) {
-    while ((k + 1) * kPeriod <= t_end + 1e-9) {
-      const double v = voltage(k * kPeriod);
-      plant.advance(kPeriod, v, kSubsteps);
-      ++k;
-      const Measurement m{
-          .t = k * kPeriod, .x = plant.x, .xdot = plant.xdot, .tbar = plant.tbar, .voltage = v};
-      ASSERT_EQ(est.update(m), UpdateOutcome::applied) << "t=" << m.t;
-      if (each) each(*this, v);
-    }
-  }
-};
+using test::kPeriod;
+using test::Rig;
 
 TEST(EstimatorSim, FilteredIdentityHolds) {
   Rig rig(scaled_config());

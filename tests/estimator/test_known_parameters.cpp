@@ -18,6 +18,7 @@
 #include "estimator/block_rls.hpp"
 #include "estimator/config_check.hpp"
 #include "estimator/estimator.hpp"
+#include "tests/estimator/plant_rig.hpp"
 #include "tests/estimator/synthetic_trajectory.hpp"
 #include "tests/estimator/test_plant.hpp"
 
@@ -205,9 +206,6 @@ TEST(KnownParameters, KnownParameterStaysPutWhenTheFloorIsLifted) {
 
 // ---- Estimator on the paper's experiment (independent RK4 plant) ----
 
-constexpr double kPeriod = 1e-3;
-constexpr int kSubsteps = 20;
-
 Vector6 true_theta() {  // Table I by hand
   Vector6 t;
   t << 124.7 / 0.1, 0.08 / 0.1, 181.3 / 0.1, 0.01 / 0.1, 0.0540 / 0.9090, 1.0 / 0.9090;
@@ -227,25 +225,7 @@ EstimatorConfig known_km_config() {
   return c;
 }
 
-struct Rig {
-  Estimator est;
-  test::Plant plant;
-  std::int64_t k = 0;
-  explicit Rig(const EstimatorConfig& c) : est(c) {
-    est.update(Measurement{.t = 0.0, .x = 0.0, .xdot = 0.0, .tbar = 0.0, .voltage = 0.0});
-  }
-  void run_until(double t_end, const std::function<void(const Rig&)>& each = nullptr) {
-    while ((k + 1) * kPeriod <= t_end + 1e-9) {
-      const double v = test::paper_voltage(k * kPeriod);
-      plant.advance(kPeriod, v, kSubsteps);
-      ++k;
-      const Measurement m{
-          .t = k * kPeriod, .x = plant.x, .xdot = plant.xdot, .tbar = plant.tbar, .voltage = v};
-      ASSERT_EQ(est.update(m), UpdateOutcome::applied) << "t=" << m.t;
-      if (each) each(*this);
-    }
-  }
-};
+using test::Rig;
 
 Vector6 rel_error(const Vector6& theta_hat) {
   return ((theta_hat - true_theta()).array() / true_theta().array()).abs().matrix();
@@ -254,12 +234,12 @@ Vector6 rel_error(const Vector6& theta_hat) {
 TEST(KnownParameters, EstimatorWithKnownStiffnessOnThePaperExperiment) {
   Rig masked(known_km_config());
   int moved = 0, nonzero_sigma = 0;
-  masked.run_until(150.0, [&](const Rig& r) {
+  masked.run_until(150.0, test::paper_voltage, [&](const Rig& r, double) {
     moved += r.est.estimate().theta_hat(2) != 1813.0;
     nonzero_sigma += r.est.estimate().sigma(2) != 0.0;
   });
   Rig plain(scaled_config());
-  plain.run_until(150.0);
+  plain.run_until(150.0, test::paper_voltage);
 
   const Vector6 em = rel_error(masked.est.estimate().theta_hat);
   const Vector6 ep = rel_error(plain.est.estimate().theta_hat);
@@ -381,13 +361,13 @@ TEST(KnownParameters, ConvergedMechWaitsForTheMechanicalWindow) {
   c.converged_rel_sigma = 1e30;  // only the window guard can refuse
   Rig rig(c);
   bool early = false, thermal_early = false;
-  rig.run_until(19.9, [&](const Rig& r) {
+  rig.run_until(19.9, test::paper_voltage, [&](const Rig& r, double) {
     early = early || r.est.estimate().converged_mech;
     thermal_early = thermal_early || r.est.estimate().converged_thermal;
   });
   EXPECT_FALSE(early);
   EXPECT_TRUE(thermal_early);
-  rig.run_until(20.1);
+  rig.run_until(20.1, test::paper_voltage);
   EXPECT_TRUE(rig.est.estimate().converged_mech);
 }
 
