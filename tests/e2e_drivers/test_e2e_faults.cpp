@@ -5,7 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
+#include <string>
 
 #include "e2e_configs.hpp"
 #include "e2e_util.hpp"
@@ -91,15 +93,25 @@ TEST(E2eFaults, OutOfRangeTemperatureOverCanGivesZeroVoltsAtTheNextFrame) {
 // so that a loaded CI machine's late replies do not mask the injected fault with a timeout one.
 struct RealTimeRun {
   static constexpr double kModbusTimeout = 0.002;
+  // The peers' fault window opens this long after they start (their --fault-after).
+  static constexpr double kPeerFaultAfter = 1.5;
   TempDir dir;
   RunSetup setup;
   std::string log;
+  std::chrono::steady_clock::time_point peer_up;
   RealTimeRun() {
     setup.period_s = 0.005;
     setup.socket_path = dir.file("sock");
     setup.state_dir = dir.path().string();
     setup.recover_after_s = 0.5;
     log = dir.file("commands.csv");
+  }
+
+  // Waits for the peer's banner and notes when it was seen: the peer's clock started before.
+  bool wait_for_peer(ChildProcess& peer, const std::string& banner) {
+    const bool ready = peer.wait_for(banner, 10.0);
+    peer_up = std::chrono::steady_clock::now();
+    return ready;
   }
 
   // The real-time daemon on a Modbus TCP peer listening on `port`.
@@ -114,10 +126,14 @@ struct RealTimeRun {
     const auto up = wait_status(setup.socket_path, 10.0,
                                 [](const auto& s) { return state_of(s) == "running"; });
     ASSERT_EQ(state_of(up), "running") << up.dump() << daemon.output();
-    // The fault injected by the peer, identified by its reason: on a loaded machine a start-up
-    // hiccup (a late reply with this test's tight 1 ms timeout) may fault and recover first.
-    const auto fault = wait_status(setup.socket_path, 10.0, [&reason](const auto& s) {
-      return state_of(s) == "fault" &&
+    // The fault injected by the peer, identified by its reason and seen once the peer's window
+    // is open: on a loaded machine a start-up hiccup (a late reply, with the same "modbus"
+    // reason as a dead slave) may fault and recover before the window opens.
+    const auto window_open =
+        peer_up + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                      std::chrono::duration<double>(kPeerFaultAfter));
+    const auto fault = wait_status(setup.socket_path, 10.0, [&](const auto& s) {
+      return std::chrono::steady_clock::now() >= window_open && state_of(s) == "fault" &&
              s.value("fault_reason", "").find(reason) != std::string::npos;
     });
     ASSERT_EQ(state_of(fault), "fault") << fault.dump() << daemon.output();
@@ -135,7 +151,7 @@ struct RealTimeRun {
       const auto cmds = read_command_log(log);
       bool zero = false, excited_after = false;
       for (const auto& c : cmds) {
-        if (c.wall_s > 1.5 && c.volts == 0.0) zero = true;
+        if (c.wall_s > kPeerFaultAfter && c.volts == 0.0) zero = true;
         if (zero && c.volts > 0.1) excited_after = true;
       }
       EXPECT_TRUE(zero && excited_after) << cmds.size() << " commands logged";
@@ -147,8 +163,9 @@ TEST(E2eFaults, ModbusSlaveThatStopsAnsweringFaultsAndRecovers) {
   RealTimeRun run;
   ChildProcess simdaq(simdaq_realtime(
       {"--config", run.dir.write("sd.yaml", modbus_tcp_yaml(run.setup, 1502)), "--listen",
-       "127.0.0.1:0", "--fault-after", "1.5", "--fault-duration", "1", "--command-log", run.log}));
-  ASSERT_TRUE(simdaq.wait_for("listening on", 10.0)) << simdaq.output();
+       "127.0.0.1:0", "--fault-after", std::to_string(RealTimeRun::kPeerFaultAfter),
+       "--fault-duration", "1", "--command-log", run.log}));
+  ASSERT_TRUE(run.wait_for_peer(simdaq, "listening on")) << simdaq.output();
   ChildProcess daemon(run.daemon_argv(printed_port(simdaq.output())));
   run.expect_fault_and_recovery(daemon, "modbus", true);
 }
@@ -166,8 +183,9 @@ TEST(E2eFaults, ModbusRtuSlaveThatStopsAnsweringFaultsAndRecovers) {
   ASSERT_EQ(ptys.size(), 2U) << socat.output();
   ChildProcess simdaq(
       simdaq_realtime({"--config", run.dir.write("sd.yaml", modbus_rtu_yaml(run.setup, ptys[0])),
-                       "--fault-after", "1.5", "--fault-duration", "1", "--command-log", run.log}));
-  ASSERT_TRUE(simdaq.wait_for("serving", 10.0)) << simdaq.output();
+                       "--fault-after", std::to_string(RealTimeRun::kPeerFaultAfter),
+                       "--fault-duration", "1", "--command-log", run.log}));
+  ASSERT_TRUE(run.wait_for_peer(simdaq, "serving")) << simdaq.output();
   ChildProcess daemon(
       {kDaemon, "--config",
        run.dir.write("d.yaml", modbus_rtu_yaml(run.setup, ptys[1], kFloat32Map, 0.004))});
@@ -176,11 +194,11 @@ TEST(E2eFaults, ModbusRtuSlaveThatStopsAnsweringFaultsAndRecovers) {
 
 TEST(E2eFaults, ModbusExceptionRepliesFaultAndRecover) {
   RealTimeRun run;
-  ChildProcess simdaq(
-      simdaq_realtime({"--config", run.dir.write("sd.yaml", modbus_tcp_yaml(run.setup, 1502)),
-                       "--listen", "127.0.0.1:0", "--exception-after", "1.5", "--fault-duration",
-                       "3", "--exception-code", "4", "--command-log", run.log}));
-  ASSERT_TRUE(simdaq.wait_for("listening on", 10.0)) << simdaq.output();
+  ChildProcess simdaq(simdaq_realtime(
+      {"--config", run.dir.write("sd.yaml", modbus_tcp_yaml(run.setup, 1502)), "--listen",
+       "127.0.0.1:0", "--exception-after", std::to_string(RealTimeRun::kPeerFaultAfter),
+       "--fault-duration", "3", "--exception-code", "4", "--command-log", run.log}));
+  ASSERT_TRUE(run.wait_for_peer(simdaq, "listening on")) << simdaq.output();
   ChildProcess daemon(run.daemon_argv(printed_port(simdaq.output())));
   run.expect_fault_and_recovery(daemon, "exception 4", true);
 }
@@ -222,11 +240,11 @@ TEST(E2eFaults, SilentCanNodeFaultsAndRecovers) {
   RealTimeRun run;
   CanWire wire;
   const std::string cfg = run.dir.write("can.yaml", can_yaml(run.setup, 0.0));
-  ChildProcess node(
-      simdaq_realtime({"--config", cfg, "--transport", "can", "--device", "fd:3", "--fault-after",
-                       "1.5", "--fault-duration", "1", "--command-log", run.log}),
-      wire.node);
-  ASSERT_TRUE(node.wait_for("CAN node on fd 3", 10.0)) << node.output();
+  ChildProcess node(simdaq_realtime({"--config", cfg, "--transport", "can", "--device", "fd:3",
+                                     "--fault-after", std::to_string(RealTimeRun::kPeerFaultAfter),
+                                     "--fault-duration", "1", "--command-log", run.log}),
+                    wire.node);
+  ASSERT_TRUE(run.wait_for_peer(node, "CAN node on fd 3")) << node.output();
   ChildProcess daemon({kDaemon, "--config", cfg}, wire.daemon);
   run.expect_fault_and_recovery(daemon, "stale", true);
 }
@@ -235,11 +253,12 @@ TEST(E2eFaults, CanBusOffFaultsAndRecoversOnRestart) {
   RealTimeRun run;
   CanWire wire;
   const std::string cfg = run.dir.write("can.yaml", can_yaml(run.setup, 0.0));
-  ChildProcess node(simdaq_realtime({"--config", cfg, "--transport", "can", "--device", "fd:3",
-                                     "--fault-after", "1.5", "--fault-duration", "1", "--can-fault",
-                                     "bus_off", "--command-log", run.log}),
-                    wire.node);
-  ASSERT_TRUE(node.wait_for("CAN node on fd 3", 10.0)) << node.output();
+  ChildProcess node(
+      simdaq_realtime({"--config", cfg, "--transport", "can", "--device", "fd:3", "--fault-after",
+                       std::to_string(RealTimeRun::kPeerFaultAfter), "--fault-duration", "1",
+                       "--can-fault", "bus_off", "--command-log", run.log}),
+      wire.node);
+  ASSERT_TRUE(run.wait_for_peer(node, "CAN node on fd 3")) << node.output();
   ChildProcess daemon({kDaemon, "--config", cfg}, wire.daemon);
   // The node logs the commands it receives once restarted: 0 V until the daemon recovers.
   run.expect_fault_and_recovery(daemon, "bus-off", true);
