@@ -190,9 +190,10 @@ int run_can_sim_node(const CanSettings& can, const sim::SimSettings& sim, const 
       return 0;
     };
     if (o.lockstep) {
+      // One step per wake-up by the daemon's frames, the first one by the forced 0 V command of
+      // its open(). Stepping once before that would put the node a step ahead, and a read that
+      // drains the queue could then take x from one step and T from the next.
       long long k = 0;
-      inject(0.0);
-      node.step(0.0, period_s);
       while (!stop.load(std::memory_order_relaxed)) {
         const double w = monotonic_s() - wall0;
         if (o.duration_s > 0 && w >= o.duration_s) break;
@@ -201,7 +202,7 @@ int run_can_sim_node(const CanSettings& can, const sim::SimSettings& sim, const 
         if (ready <= 0) continue;
         if (p.revents & (POLLHUP | POLLERR)) break;  // the daemon closed its end
         inject(w);
-        node.step(static_cast<double>(++k) * period_s, period_s);
+        node.step(static_cast<double>(k++) * period_s, period_s);
       }
       return finish();
     }

@@ -82,10 +82,10 @@ TEST(E2eFaults, OutOfRangeTemperatureOverCanGivesZeroVoltsAtTheNextFrame) {
   EXPECT_EQ(s["state"], "FAULT") << s.dump();
   EXPECT_NE(s.value("fault_reason", "").find("temperature"), std::string::npos) << s.dump();
   node.stop(SIGTERM);
-  // The node logs a command under the step it applies it to; the sample of step 500 (1.0 s)
-  // is the first bad one, so the command applied at step 501 on must be 0 V. The daemon's
-  // open() frame shifts the node one step ahead, hence 502.
-  expect_zero_after_step(read_command_log(log), 502);
+  // The node logs a command under the step it applies it to (its first step is the daemon's
+  // open() frame); the sample of step 500 (1.0 s) is the first bad one, so the command applied
+  // at step 501 on must be 0 V.
+  expect_zero_after_step(read_command_log(log), 501);
 }
 
 // A real-time daemon on a peer whose fault window opens at 1.5 s: the daemon faults (0 V), then
