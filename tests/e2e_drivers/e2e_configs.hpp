@@ -75,6 +75,16 @@ inline std::string modbus_rtu_yaml(const RunSetup& s, const std::string& device,
          std::to_string(timeout) + "\n    reconnect: {initial: 0.05, max: 0.2}\n" + map;
 }
 
+// The daemon's side of a real-time Modbus RTU run over a socat pty pair at a 10 ms period. Each
+// transaction passes four tty hops (daemon, socat, scp-simdaq) through the kernel's tty workqueue,
+// which runs at ordinary priority whatever the peers' priority: on a busy machine a few replies in
+// a row can miss the timeout. So 4 ms timeouts, and eight failures in a row (80 ms, below
+// safety.stale_timeout_s) tolerated, as a lab would configure a slow serial link; a dead slave
+// still faults within 80 ms.
+inline std::string modbus_rtu_realtime_yaml(const RunSetup& s, const std::string& device) {
+  return modbus_rtu_yaml(s, device, kFloat32Map + "    max_consecutive_failures: 8\n", 0.004);
+}
+
 // CAN: x and ẋ int32 in one frame, T and V read-back in another; fine scales (see the docs'
 // quantization notes). read_wait_s > 0 for lock-step offline runs.
 inline std::string can_yaml(const RunSetup& s, double read_wait_s, double x_scale = 1e-11,

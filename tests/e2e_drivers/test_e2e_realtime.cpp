@@ -107,14 +107,11 @@ TEST(E2eRealTime, ModbusRtuOverAPtyPairRunsWithoutFaults) {
   ChildProcess simdaq(
       simdaq_realtime({"--config", dir.write("sd.yaml", modbus_rtu_yaml(setup, ptys[0]))}));
   ASSERT_TRUE(simdaq.wait_for("serving", 10.0)) << simdaq.output();
-  // Four tty hops per transaction (daemon, socat, scp-simdaq), through the kernel's tty workqueue
-  // at ordinary priority: on a busy machine a few replies in a row can miss the timeout. Eight in
-  // a row (80 ms, below safety.stale_timeout_s) are tolerated, as a lab would configure a slow
-  // serial link; longer streaks drop the link, and the run must recover from them by itself (at
-  // least 3/4 of the polls RUNNING; measured under two CPU-bound processes: about 5 of 32 not).
-  const std::string map = kFloat32Map + "    max_consecutive_failures: 8\n";
+  // Streaks longer than the tolerated failures (modbus_rtu_realtime_yaml) drop the link, and the
+  // run must recover from them by itself: at least 3/4 of the polls RUNNING (measured under two
+  // CPU-bound processes: about 5 of 32 not).
   ChildProcess daemon(
-      {kDaemon, "--config", dir.write("d.yaml", modbus_rtu_yaml(setup, ptys[1], map, 0.004))});
+      {kDaemon, "--config", dir.write("d.yaml", modbus_rtu_realtime_yaml(setup, ptys[1]))});
   expect_healthy_run(daemon, setup, "modbus rtu", 0.75);
 }
 
