@@ -3,20 +3,30 @@
 // simulated driver or a replayed CSV, the loop time advancing one period per cycle.
 
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "daemon/config/daemon_config.hpp"
 
 namespace scp::daemon {
 
+inline constexpr double kDefaultBatchDuration = 200.0;  // s, without a replay
+
 struct BatchOptions {
-  double duration_s = 200.0;  // loop time to run; a replay also stops at the end of its file
-  std::string record_path;    // CSV of every cycle; empty = none
-  std::string replay_path;    // CSV to feed instead of the configured driver; empty = none
+  // Loop time to run. Unset: a replay runs to the end of its file, a simulation
+  // kDefaultBatchDuration. A replay also stops at the end of its file when this is longer.
+  std::optional<double> duration_s;
+  std::string record_path;  // CSV of every cycle; empty = none
+  // CSV files (or directories of them, e.g. a rotated recording) to feed, in time order, instead
+  // of the configured driver; empty = none.
+  std::vector<std::string> replay_paths;
 };
 
 // Runs and returns the summary: t, theta_hat, sigma, (theta_true, rel_error with the simulated
-// driver), state, fault_reason, cycles, skipped, wall_time_s, realtime_factor. Throws
+// driver), state, fault_reason, cycles, skipped, wall_time_s, realtime_factor, and with refine
+// enabled paper_biased, best, refined (as in ESTIMATE) and refine counters. The refinement runs
+// inline: a fit every refine.interval_s of loop time and one at the end. Throws
 // std::runtime_error (driver, recorder) with a message for the user.
 nlohmann::json run_batch(config::DaemonConfig config, const BatchOptions& options);
 

@@ -54,4 +54,17 @@ std::vector<std::string> driver_names() {
   return names;
 }
 
+std::string driver_endpoint(const config::DaemonConfig& config) {
+  const auto& d = config.driver;
+  if (d.type == "modbus") {
+    if (d.modbus.transport == drivers::modbus::Transport::rtu)
+      return "modbus rtu " + d.modbus.device + " unit " + std::to_string(d.modbus.unit_id);
+    return "modbus tcp " + d.modbus.host + ":" + std::to_string(d.modbus.port) + " unit " +
+           std::to_string(d.modbus.unit_id);
+  }
+  if (d.type == "can") return "can " + d.can.interface;
+  if (d.type == "replay") return "replay " + d.replay.file;
+  return d.type;
+}
+
 }  // namespace scp::daemon

@@ -14,4 +14,9 @@ namespace scp::daemon {
 std::unique_ptr<drivers::Driver> make_driver(const config::DaemonConfig& config);
 std::vector<std::string> driver_names();
 
+// The device this configuration talks to, in words ("modbus tcp 10.0.0.5:502", "can can0",
+// "replay /path.csv", "sim"): part of a checkpoint's identity, so that a warm start through
+// another device is refused.
+std::string driver_endpoint(const config::DaemonConfig& config);
+
 }  // namespace scp::daemon

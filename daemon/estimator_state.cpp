@@ -26,7 +26,8 @@ estimator::State to_state(const EstimatorStateView& v) noexcept {
   return s;
 }
 
-state::Checkpoint to_checkpoint(const EstimatorStateView& v, const std::string& driver) {
+state::Checkpoint to_checkpoint(const EstimatorStateView& v, const std::string& driver,
+                                const std::string& actuator, const std::string& endpoint) {
   state::Checkpoint c;
   c.theta_hat = v.theta_hat;
   c.info_mech = v.info_mech;
@@ -34,6 +35,8 @@ state::Checkpoint to_checkpoint(const EstimatorStateView& v, const std::string& 
   c.eps2_mean = v.eps2_mean;
   c.t = v.t;
   c.driver = driver;
+  c.actuator = actuator;
+  c.endpoint = endpoint;
   c.wall_time_unix = std::chrono::duration_cast<std::chrono::seconds>(
                          std::chrono::system_clock::now().time_since_epoch())
                          .count();

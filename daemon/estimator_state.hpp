@@ -21,7 +21,9 @@ struct EstimatorStateView {
 
 EstimatorStateView to_view(const estimator::State& state) noexcept;
 estimator::State to_state(const EstimatorStateView& view) noexcept;
-state::Checkpoint to_checkpoint(const EstimatorStateView& view, const std::string& driver);
+// `actuator` and `endpoint` identify the actuator the estimate belongs to (warm_start.hpp).
+state::Checkpoint to_checkpoint(const EstimatorStateView& view, const std::string& driver,
+                                const std::string& actuator = {}, const std::string& endpoint = {});
 EstimatorStateView to_view(const state::Checkpoint& checkpoint) noexcept;
 
 }  // namespace scp::daemon

@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <cstring>
+#include <ctime>
+#include <limits>
 #include <thread>
 
 #include "estimator/model.hpp"
@@ -17,26 +19,35 @@ std::array<double, N> to_array(const Vec& v) noexcept {
   return out;
 }
 
+// Wall-clock time for the record: a vDSO read, no system call, no allocation (real-time safe).
+std::int64_t unix_now_ns() noexcept {
+  timespec ts{};
+  ::clock_gettime(CLOCK_REALTIME, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
 }  // namespace
 
+// The wire's spelling (docs/protocol.md, STATUS.state), also in batch summaries and CSVs.
 const char* to_string(RunState state) noexcept {
   switch (state) {
     case RunState::starting:
-      return "STARTING";
+      return "starting";
     case RunState::running:
-      return "RUNNING";
+      return "running";
     case RunState::fault:
-      return "FAULT";
+      return "fault";
     case RunState::stopping:
-      return "STOPPING";
+      return "stopping";
   }
-  return "UNKNOWN";
+  return "unknown";
 }
 
 Loop::Loop(const config::DaemonConfig& config, drivers::Driver& driver,
            rt::Seqlock<PublishedState>& published, CommandRing& commands, RecordRing* record,
-           bool block_when_record_full)
+           bool block_when_record_full, refine::HandOffRing* handoff)
     : config_(config),
+      safety_(config.safety),
       driver_(driver),
       published_(published),
       commands_(commands),
@@ -47,12 +58,20 @@ Loop::Loop(const config::DaemonConfig& config, drivers::Driver& driver,
       velocity_(velocity::VelocitySettings{config.driver.velocity.bandwidth_hz,
                                            config.driver.velocity.damping}),
       physical_known_(config.actuator.mass_kg > 0.0 && config.actuator.resistance_ohm > 0.0),
-      excitation_enabled_(config.excitation.enabled) {
+      excitation_enabled_(config.excitation.enabled),
+      handoff_(handoff) {
   set_reason(fault_reason_, "");
+  set_reason(waiting_reason_, "");
 }
 
 CycleResult Loop::cycle(const drivers::CycleTime& now) noexcept {
   ++cycles_;
+  cycle_t_ = now.t;
+  if (safety_cell_ != nullptr && safety_cell_->version() != safety_version_) {
+    const std::uint64_t version = safety_cell_->version();
+    if (safety_cell_->try_load(safety_)) safety_version_ = version;
+  }
+  take_excitation();
   handle_commands(now);
 
   // 1. Read.
@@ -65,8 +84,16 @@ CycleResult Loop::cycle(const drivers::CycleTime& now) noexcept {
     return CycleResult::end_of_data;
   }
   driver_ok_ = read.status != drivers::IoStatus::error;
+  // Until the device's first fresh reading it is awaited, not faulted: a DAQ absent or slow at
+  // start (or still booting) is the ordinary start of a bench. The output is 0 V either way
+  // (STARTING); the service bounds the wait with driver.start_timeout_s.
+  const bool awaiting = !have_fresh_ && state_ == RunState::starting;
   if (read.status == drivers::IoStatus::error) {
-    enter_fault(FaultKind::driver, read.reason[0] ? read.reason : "driver read failed");
+    if (awaiting) {
+      set_reason(waiting_reason_, read.reason[0] ? read.reason : "driver read failed");
+    } else {
+      enter_fault(FaultKind::driver, read.reason[0] ? read.reason : "driver read failed");
+    }
   } else if (read.status == drivers::IoStatus::ok) {
     if (xdot_ == Xdot::unknown) {
       xdot_ = std::isfinite(sample.xdot) ? Xdot::measured : Xdot::estimated;
@@ -75,25 +102,30 @@ CycleResult Loop::cycle(const drivers::CycleTime& now) noexcept {
     sample_fresh_ = true;
     have_fresh_ = true;
     last_fresh_t_ = now.t;
+    set_reason(waiting_reason_, "");
   }
 
   // 2. Safety: limits on the sample and staleness, independent of the estimator.
   if (sample_fresh_) {
     Reason why{};
-    sample_valid_ = check_sample(sample_, config_.safety, xdot_ == Xdot::measured, why);
+    sample_valid_ = check_sample(sample_, safety_, xdot_ == Xdot::measured, why);
     // voltage_command_ is still last cycle's command: the one the plant saw up to this reading.
-    if (sample_valid_ && !stuck_.update(sample_, now.t, voltage_command_ != 0.0,
-                                        config_.safety.stuck_timeout_s, why)) {
+    if (sample_valid_ &&
+        !stuck_.update(sample_, now.t, voltage_command_ != 0.0, safety_.stuck_timeout_s, why)) {
       sample_valid_ = false;
     }
     if (!sample_valid_) enter_fault(FaultKind::value, why);
+  } else if (awaiting) {
+    if (read.status != drivers::IoStatus::error && now.t > safety_.stale_timeout_s) {
+      set_reason(waiting_reason_, "the device sends no data yet");
+    }
   } else if (state_ != RunState::fault) {
     const double age = have_fresh_ ? now.t - last_fresh_t_ : now.t;
-    if (age > config_.safety.stale_timeout_s) {
+    if (age > safety_.stale_timeout_s) {
       Reason why{};
       std::snprintf(why.data(), why.size(),
                     "no fresh reading for %.3f s (safety.stale_timeout_s = %.3f s)", age,
-                    config_.safety.stale_timeout_s);
+                    safety_.stale_timeout_s);
       enter_fault(FaultKind::driver, why);
     }
   }
@@ -109,16 +141,22 @@ CycleResult Loop::cycle(const drivers::CycleTime& now) noexcept {
   drivers::Sample fed;
   const bool feed = sample_fresh_ && estimator_input(fed) && state_ == RunState::running;
   if (feed) {
-    const estimator::Measurement m{fed.t, fed.x, fed.xdot,
-                                   fed.temperature - config_.actuator.ambient_c, fed.voltage};
+    // fed.t is when the sample was taken and fed.voltage_since when its voltage took effect, as
+    // the driver stamped them (the deadline and −∞ unless it knows better).
+    const estimator::Measurement m{fed.t,       fed.x,
+                                   fed.xdot,    fed.temperature - config_.actuator.ambient_c,
+                                   fed.voltage, fed.voltage_since};
     estimator_.update(m);
     if (cycles_ % kStatePublishCycles == 0) estimator_state_.store(to_view(estimator_.state()));
+    hand_off(fed);
+  } else if (state_ != RunState::running) {
+    handoff_break_ = true;  // the model cannot be simulated across a stretch not fed
   }
 
   // 4. Excitation and 5. the safety clamp: 0 V unless running.
   double command = 0.0;
   if (state_ == RunState::running && excitation_enabled_) {
-    command = clamp_voltage(excitation_.voltage(now.t), config_.safety);
+    command = clamp_voltage(active_excitation_->voltage(now.t), safety_);
   }
 
   // 6. Write.
@@ -136,8 +174,22 @@ CycleResult Loop::cycle(const drivers::CycleTime& now) noexcept {
 
   // 7. Publish.
   publish(now);
-  if (record_ != nullptr && feed) record(fed);
+  if (feed) {
+    if (RecordRing* ring = record_ring()) record(fed, *ring);
+  }
   return CycleResult::ok;
+}
+
+void Loop::take_excitation() noexcept {
+  if (excitation_exchange_ == nullptr) return;
+  ExcitationUpdate update;
+  while (excitation_exchange_->take(update)) {
+    if (update.next != nullptr) {
+      if (active_excitation_ != &excitation_) excitation_exchange_->retire(active_excitation_);
+      active_excitation_ = update.next;
+    }
+    if (update.enabled >= 0) excitation_enabled_ = update.enabled != 0;
+  }
 }
 
 void Loop::handle_commands(const drivers::CycleTime& now) noexcept {
@@ -152,6 +204,7 @@ void Loop::handle_commands(const drivers::CycleTime& now) noexcept {
         velocity_.reset();
         velocity_started_ = false;
         central_difference_.reset();
+        handoff_break_ = true;
         set_reason(ack_.message, "estimator restarted from its initial values");
         break;
       case CommandKind::excitation_on:
@@ -172,6 +225,7 @@ void Loop::handle_commands(const drivers::CycleTime& now) noexcept {
           state_ = RunState::starting;  // 0 V until the next fresh reading
           set_reason(fault_reason_, "");
           set_reason(ack_.message, "fault cleared");
+          ++faults_.cleared;
         } else {
           ack_.ok = false;
           // The cause is the more useful half of the message; keep it whole.
@@ -193,7 +247,7 @@ bool Loop::cause_gone(Reason& why) const noexcept {
     set_reason(why, "no fresh reading this cycle");
     return false;
   }
-  return check_sample(sample_, config_.safety, true, why);
+  return check_sample(sample_, safety_, true, why);
 }
 
 void Loop::enter_fault(FaultKind kind, const char* reason) noexcept {
@@ -207,6 +261,10 @@ void Loop::enter_fault(FaultKind kind, const Reason& reason) noexcept {
   if (state_ != RunState::fault) {
     fault_reason_ = reason;  // keep the first cause
     fault_kind_ = kind;
+    ++faults_.count;
+    faults_.last_reason = reason;
+    faults_.last_t = cycle_t_;
+    faults_.last_unix_ns = unix_now_ns();
   } else if (kind == FaultKind::value && fault_kind_ == FaultKind::driver) {
     fault_reason_ = reason;  // a bad value while the link was down: now it must latch
     fault_kind_ = kind;
@@ -219,7 +277,7 @@ void Loop::enter_fault(FaultKind kind, const Reason& reason) noexcept {
 
 void Loop::try_recover(const drivers::CycleTime& now) noexcept {
   if (state_ != RunState::fault || fault_kind_ != FaultKind::driver ||
-      config_.safety.recover_after_s <= 0.0) {
+      safety_.recover_after_s <= 0.0) {
     return;
   }
   if (!(sample_fresh_ && sample_valid_ && driver_ok_)) {
@@ -228,10 +286,11 @@ void Loop::try_recover(const drivers::CycleTime& now) noexcept {
     return;
   }
   if (healthy_since_ < 0.0) healthy_since_ = now.t;
-  if (now.t - healthy_since_ >= config_.safety.recover_after_s) {
+  if (now.t - healthy_since_ >= safety_.recover_after_s) {
     state_ = RunState::starting;  // the next fresh reading makes it RUNNING
     set_reason(fault_reason_, "");
     healthy_since_ = -1.0;
+    ++faults_.recoveries;
   }
 }
 
@@ -245,6 +304,8 @@ void Loop::publish(const drivers::CycleTime& now) noexcept {
   PublishedState out;
   out.state = state_;
   out.fault_reason = fault_reason_;
+  out.awaiting_device = !have_fresh_ && state_ == RunState::starting;
+  out.waiting_reason = waiting_reason_;
   out.uptime_s = now.t;
   out.period_s = now.period;
   out.excitation_enabled = excitation_enabled_;
@@ -253,10 +314,17 @@ void Loop::publish(const drivers::CycleTime& now) noexcept {
   out.loop = stats_;
   out.driver = driver_.stats();
   out.last_ack = ack_;
+  out.handoff_dropped = dropped_handoff_;
+  out.unix_ns = unix_now_ns();
+  unix_ns_ = out.unix_ns;
+  out.recording = record_ring() != nullptr && !block_when_record_full_;
+  out.record_dropped = dropped_rows_;
+  out.faults = faults_;
 
   const estimator::Estimate& e = estimator_.estimate();
   EstimateView& v = out.estimate;
   v.t = e.t;
+  v.unix_ns = out.unix_ns;
   v.theta_hat = to_array<6>(e.theta_hat);
   v.sigma = to_array<6>(e.sigma);
   v.eps = to_array<2>(e.eps);
@@ -296,8 +364,29 @@ bool Loop::estimator_input(drivers::Sample& fed) noexcept {
   return true;
 }
 
+// The refinement sees exactly what the estimator was fed, with the instant the sample's voltage
+// took effect (−∞ unless the driver stamps its commands: drivers/sample.hpp).
+void Loop::hand_off(const drivers::Sample& fed) noexcept {
+  if (handoff_ == nullptr) return;
+  if (handoff_break_) {
+    ++handoff_segment_;
+    handoff_break_ = false;
+  }
+  refine::HandOff h;
+  h.sample.t = fed.t;
+  h.sample.x = fed.x;
+  h.sample.tbar = fed.temperature - config_.actuator.ambient_c;
+  h.sample.voltage = fed.voltage;
+  h.sample.voltage_since = fed.voltage_since;
+  h.segment = handoff_segment_;
+  if (!handoff_->try_push(h)) {
+    ++dropped_handoff_;
+    handoff_break_ = true;
+  }
+}
+
 // The row holds exactly what the estimator was fed, so replaying the file reproduces the run.
-void Loop::record(const drivers::Sample& fed) noexcept {
+void Loop::record(const drivers::Sample& fed, RecordRing& ring) noexcept {
   const estimator::Estimate& e = estimator_.estimate();
   RecordRow row;
   row.t = fed.t;
@@ -312,7 +401,10 @@ void Loop::record(const drivers::Sample& fed) noexcept {
   row.af = to_array<2>(e.af);
   row.af_hat = to_array<2>(e.af_hat);
   row.state = static_cast<std::uint8_t>(state_);
-  while (!record_->try_push(row)) {
+  row.unix_ns = unix_ns_;
+  row.xdot_measured = xdot_ == Xdot::measured;
+  row.dropped_before = dropped_rows_;
+  while (!ring.try_push(row)) {
     if (!block_when_record_full_) {
       ++dropped_rows_;
       return;

@@ -18,7 +18,8 @@ enum class RunState : std::uint8_t {
 
 const char* to_string(RunState state) noexcept;
 
-inline constexpr std::size_t kReasonChars = 128;
+// Long enough for a driver's reason with its endpoint and remedy (set_reason cuts at a word).
+inline constexpr std::size_t kReasonChars = 320;
 inline constexpr std::size_t kHistogramBins = 32;
 
 // Wake-up lateness and cycle execution time, kept by the loop thread only.
@@ -44,6 +45,9 @@ struct LoopStatistics {
 
 struct EstimateView {
   double t = 0.0;  // s, loop time of the last update
+  // CLOCK_REALTIME (ns since 1970, UTC) of the cycle that published this view: aligns the loop's
+  // time with the lab's other instruments (rendered as "utc" and "unix_ns").
+  std::int64_t unix_ns = 0;
   std::array<double, 6> theta_hat{};
   std::array<double, 6> sigma{};       // per-parameter standard deviation
   std::array<double, 2> eps{};         // prediction error, eq. (20)
@@ -67,9 +71,26 @@ struct CommandAck {
   std::array<char, kReasonChars> message{};
 };
 
+// Faults that came and went: the loop counts them, so a fault that recovered between two polls
+// (or overnight) is still visible (STATUS fault_count, last_fault).
+struct FaultHistory {
+  std::uint64_t count = 0;  // entries into FAULT since start
+  std::uint64_t recoveries =
+      0;                      // driver faults that cleared by themselves (safety.recover_after_s)
+  std::uint64_t cleared = 0;  // faults cleared by clear-fault
+  std::array<char, kReasonChars> last_reason{};
+  double last_t = 0.0;            // loop time of the last entry into FAULT
+  std::int64_t last_unix_ns = 0;  // CLOCK_REALTIME of the same
+};
+
 struct PublishedState {
   RunState state = RunState::starting;
   std::array<char, kReasonChars> fault_reason{};
+  // STARTING before the device's first fresh reading since start: the device is awaited (not a
+  // fault), for driver.start_timeout_s at most when set. waiting_reason says why it is not there
+  // yet (the driver's reason; "" until a cycle found one).
+  bool awaiting_device = true;
+  std::array<char, kReasonChars> waiting_reason{};
   double uptime_s = 0.0;
   double period_s = 0.0;
   bool excitation_enabled = true;
@@ -79,6 +100,11 @@ struct PublishedState {
   drivers::DriverStats driver{};
   EstimateView estimate{};
   CommandAck last_ack{};
+  std::uint64_t handoff_dropped = 0;  // samples the refinement's hand-off ring had no room for
+  std::int64_t unix_ns = 0;           // CLOCK_REALTIME of this snapshot's cycle
+  bool recording = false;             // a service-mode recording is on (config `recording`)
+  std::uint64_t record_dropped = 0;   // recording rows the ring had no room for
+  FaultHistory faults{};
 };
 
 // Commands travel from the socket server (the single producer) to the loop through an SpscRing.

@@ -20,6 +20,11 @@ struct RecordRow {
   std::array<double, 2> af{};
   std::array<double, 2> af_hat{};
   std::uint8_t state = 0;
+  std::int64_t unix_ns = 0;   // CLOCK_REALTIME of the cycle (0 when unknown)
+  bool xdot_measured = true;  // false: ẋ estimated from x (driver.velocity)
+  // Rows the loop dropped (ring full) before this one, since the start: the recorder marks the
+  // place in the file, where a replay stops reproducing the live run.
+  std::uint64_t dropped_before = 0;
 };
 
 }  // namespace scp::daemon

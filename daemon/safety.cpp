@@ -9,7 +9,18 @@
 namespace scp::daemon {
 
 void set_reason(Reason& reason, const char* text) noexcept {
-  std::snprintf(reason.data(), reason.size(), "%s", text);
+  const std::size_t n = std::strlen(text);
+  if (n < reason.size()) {
+    std::memcpy(reason.data(), text, n + 1);
+    return;
+  }
+  // Too long for the fixed buffer: cut at a word boundary and say so, never mid-word.
+  constexpr char kCut[] = " [...]";
+  std::size_t keep = reason.size() - sizeof kCut;
+  while (keep > 0 && text[keep] != ' ') --keep;
+  if (keep == 0) keep = reason.size() - sizeof kCut;
+  std::memcpy(reason.data(), text, keep);
+  std::memcpy(reason.data() + keep, kCut, sizeof kCut);
 }
 
 bool check_sample(const drivers::Sample& s, const config::SafetySettings& limits,

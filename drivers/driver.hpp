@@ -3,12 +3,17 @@
 //
 // Lifecycle (every driver):   constructed --open()--> opened --read/write...--> close()
 //   open()          non-real-time. Connects, validates, allocates. Throws DriverError whose message
-//                   names the remedy. After open() the output must already be 0 V.
+//                   names the remedy. After open() the output is 0 V, or (a device absent
+//                   or silent at start) output_confirmed is false and the driver keeps trying
+//                   to connect in the background, as after a link lost later.
 //   read()          real-time, once per cycle. No allocation, no lock shared with non-real-time
 //                   threads, no blocking beyond the device's own configured timeout.
 //   write_voltage() real-time, once per cycle, with a value the safety layer already clamped.
 //   safe_state()    real-time, best effort: command 0 V. Called on every fault and shutdown path;
 //                   must be callable any number of times and after a failed read or write.
+//                   Whether the device acknowledged it is in stats().output_confirmed.
+//   A driver that loses its link tries 0 V on it before closing it, and sends 0 V first on a
+//   new one, before any other command.
 //   close()         non-real-time; leaves the device at 0 V.
 
 #include <array>
@@ -32,6 +37,10 @@ class DriverError : public std::runtime_error {
 struct CycleTime {
   double t = 0.0;       // s since the loop started (k · period)
   double period = 0.0;  // s
+  // CLOCK_MONOTONIC ns of the deadline t stands for, in a real-time run; 0 in batch and lock-step
+  // runs, which have no wall clock. A driver that time-stamps its transactions converts them to
+  // loop time with it: t + (clock − deadline_ns)·1e-9 (Sample::t, Sample::voltage_since).
+  std::int64_t deadline_ns = 0;
 };
 
 enum class IoStatus : std::uint8_t {
@@ -58,7 +67,24 @@ struct DriverStats {
   std::uint64_t write_errors = 0;
   std::uint64_t dropped = 0;     // frames or replies that arrived but could not be used
   std::uint64_t reconnects = 0;  // links re-established by the driver's own recovery
+  // Replies that arrived after their transaction had timed out, recognised (Modbus TCP: by the
+  // transaction id) and discarded instead of being taken for the answer to a later request.
+  std::uint64_t late_replies = 0;
+  // Samples and commands whose transaction took far longer than usual (the loop thread
+  // preempted, a reply delivered late), so its midpoint no longer marks the device's event:
+  // stamped from the cycle's deadline instead (drivers/modbus/stamp_gate.hpp). 0 when the driver
+  // does not stamp.
+  std::uint64_t stretched_stamps = 0;
   bool link_up = true;
+  // The output as the device confirmed it, not as the loop wished it: the voltage of the last
+  // command the device acknowledged, and whether the latest command (the 0 V of a safe state
+  // included) was acknowledged. false: the device may still hold output_v, or whatever the
+  // unacknowledged command set; only its own watchdog can bring it to 0 V (docs/driver-modbus.md).
+  double output_v = 0.0;
+  bool output_confirmed = true;
+  // Why the latest transaction failed (a static string, "" when none failed yet): the service
+  // logs it off the loop thread at debug level.
+  const char* last_error = "";
 };
 
 class Driver {
@@ -77,6 +103,9 @@ class Driver {
   virtual void close() noexcept = 0;
 
   virtual DriverStats stats() const noexcept { return {}; }
+  // Non-real-time (the service's thread): why the driver's background recovery last failed to
+  // reach the device, for the log; "" when it has nothing to say.
+  virtual std::string background_error() const { return {}; }
 
   // Only a simulated device knows the truth; real drivers keep the default.
   virtual bool true_theta(double /*t*/, std::array<double, 6>& /*theta*/) const noexcept {

@@ -8,7 +8,9 @@ namespace scp::drivers {
 inline constexpr double kNotMeasured = std::numeric_limits<double>::quiet_NaN();
 
 struct Sample {
-  double t = 0.0;                     // s, on the loop's clock (seconds since the loop started)
+  // s, on the loop's clock (seconds since the loop started): when x, ẋ and T were sampled. The
+  // cycle's deadline unless the driver knows better (a transaction's time stamp on a real link).
+  double t = 0.0;
   double x = kNotMeasured;            // m, length change of the actuator
   double xdot = kNotMeasured;         // m/s; NaN when the device does not measure it
   double temperature = kNotMeasured;  // °C, absolute (the estimator subtracts the ambient)
@@ -16,6 +18,11 @@ struct Sample {
   // the device cannot read it back). A DAC holds its output between commands, so this is the value
   // the estimator treats as constant over that interval.
   double voltage = kNotMeasured;
+  // s, loop clock: when `voltage` took effect at the actuator, if that was after the previous
+  // sample (a command whose write landed mid-cycle, docs/numerics.md "Time on a real link");
+  // before that instant the previous sample's voltage was applied. −∞ (the default): the voltage
+  // was applied over the whole interval, as a DAC switching at sample instants does.
+  double voltage_since = -std::numeric_limits<double>::infinity();
 };
 
 }  // namespace scp::drivers

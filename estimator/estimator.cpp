@@ -141,8 +141,11 @@ UpdateOutcome Estimator::update(const Measurement& m) noexcept {
   }
   if (h != h_cached_) {
     hold_ = HoldCoefficients::make(c.beta, h);
-    forget_mech_ = ForgettingStep::make(mech_forgetting(c), h);
     forget_thermal_ = ForgettingStep::make(c.forgetting, h);
+    // h changes in its last bits with every sample (t is a float time), so this runs each update;
+    // one expm1 less when both blocks forget at the same rate (the same bits either way).
+    forget_mech_ = mech_forgetting(c) == c.forgetting ? forget_thermal_
+                                                      : ForgettingStep::make(mech_forgetting(c), h);
     h_cached_ = h;
   }
 
@@ -166,7 +169,13 @@ UpdateOutcome Estimator::update(const Measurement& m) noexcept {
   };
   for (int i = 0; i < 3; ++i) wf_(i) = smooth(wf_(i), u_prev2_(i), u_prev_(i), u(i));
   for (int i = 3; i < 5; ++i) wf_(i) = tbar_like(wf_(i), u_prev2_(i), u_prev_(i), u(i));
-  wf_(5) = zoh ? hold_.zoh_step(wf_(5), u(5)) : smooth(wf_(5), u_prev2_(5), u_prev_(5), u(5));
+  if (zoh) {
+    wf_(5) = m.voltage_since > t_prev_ && m.voltage_since < m.t
+                 ? hold_.zoh_split_step(wf_(5), u_prev_(5), u(5), c.beta, m.t - m.voltage_since)
+                 : hold_.zoh_step(wf_(5), u(5));
+  } else {
+    wf_(5) = smooth(wf_(5), u_prev2_(5), u_prev_(5), u(5));
+  }
   const double b = c.beta;
   p_(0) = smooth(p_(0), -b * v_prev2_(0), -b * v_prev_(0), -b * v(0));
   p_(1) = tbar_like(p_(1), -b * v_prev2_(1), -b * v_prev_(1), -b * v(1));

@@ -10,7 +10,9 @@
 //   exact for quadratics, O(h³) global error for smooth inputs. Plain FOH (O(h²)) leaves ~1e-4
 //   bias in the mechanical θ̂ at 1 kHz because the stiffness k/m multiplies its error. With
 //   VoltageHold::zoh the V² column instead uses the exact zero-order-hold update, because a DAC
-//   holds the voltage of sample k+1 over (t_k, t_{k+1}]; that column is then exact.
+//   holds the voltage of sample k+1 over (t_k, t_{k+1}]; that column is then exact. When the
+//   voltage changed inside the interval (Measurement::voltage_since), the step is split there:
+//   still exact. Sample intervals need not be uniform: the coefficients follow each step's h.
 // - On the first sample (and after a filter restart) W_f = 0 and p = −βv, so a_f = 0 (eq. (9)
 //   with a_f(0) = 0); a_f = W_f θ then holds for the continuous system even if the actuator was
 //   moving when we started. That sample only initializes.
@@ -21,6 +23,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 
 #include "estimator/block_rls.hpp"
 #include "estimator/hold_filter.hpp"
@@ -28,13 +31,18 @@
 
 namespace scp::estimator {
 
-// One sample: s, m, m/s, °C above ambient, V (the voltage applied over the interval ending at t).
+// One sample: s, m, m/s, °C above ambient, V. `voltage` is the voltage applied from
+// `voltage_since` until t; before `voltage_since` (within the interval since the previous sample)
+// the previous sample's voltage was applied. The default, −∞ (or any instant at or before the
+// previous sample), is a DAC that switches at sample instants: `voltage` over the whole interval.
+// A link whose write lands mid-cycle gives the instant it landed (drivers/sample.hpp).
 struct Measurement {
   double t;
   double x;
   double xdot;
   double tbar;
   double voltage;
+  double voltage_since = -std::numeric_limits<double>::infinity();
 };
 
 enum class VoltageHold { zoh, foh };

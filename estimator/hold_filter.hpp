@@ -69,6 +69,14 @@ struct HoldCoefficients {
     return foh(y, u1, u2) + j * (-0.5 * a * (u2 - u1) / h);
   }
   double zoh_step(double y, double u_next) const noexcept { return phi * y + zoh * u_next; }
+  // ZOH with the input switching inside the interval: u_prev until `tail` before its end, u_next
+  // for the last `tail` seconds (0 < tail < h) — a DAC whose command arrived mid-interval. Exact:
+  // y_{k+1} = φ y_k + (e^{−β·tail} − φ) u_prev + (1 − e^{−β·tail}) u_next.
+  double zoh_split_step(double y, double u_prev, double u_next, double beta,
+                        double tail) const noexcept {
+    const double late = -std::expm1(-beta * tail);  // 1 − e^{−β·tail}
+    return phi * y + (zoh - late) * u_prev + late * u_next;
+  }
 };
 
 }  // namespace scp::estimator

@@ -29,6 +29,36 @@ int line_of_node(const YAML::Node& node) {
   return mark.line >= 0 ? mark.line + 1 : 0;
 }
 
+// yaml-cpp keeps both entries of a key written twice and lookups find the first, so a second
+// `loop:` section would be ignored without a word. Every mapping is checked, at any depth.
+void reject_duplicate_keys(const YAML::Node& node, const std::string& prefix,
+                           const std::string& file) {
+  if (node.IsSequence()) {
+    for (std::size_t i = 0; i < node.size(); ++i) {
+      reject_duplicate_keys(node[i],
+                            prefix.substr(0, prefix.size() - (prefix.empty() ? 0 : 1)) + "[" +
+                                std::to_string(i) + "].",
+                            file);
+    }
+    return;
+  }
+  if (!node.IsMap()) return;
+  std::vector<std::pair<std::string, int>> seen;
+  for (auto it = node.begin(); it != node.end(); ++it) {
+    const std::string key = it->first.IsScalar() ? it->first.Scalar() : std::string("?");
+    const int line = line_of_node(it->first);
+    for (const auto& [name, first_line] : seen) {
+      if (name != key) continue;
+      std::ostringstream out;
+      out << file << ":" << line << ": duplicate key '" << prefix << key << "' (first at line "
+          << first_line << "); YAML would silently keep only one of them: merge the two";
+      throw ConfigError(out.str());
+    }
+    seen.emplace_back(key, line);
+    reject_duplicate_keys(it->second, prefix + key + ".", file);
+  }
+}
+
 }  // namespace
 
 struct Binder::Shared {
@@ -109,6 +139,7 @@ Binder Binder::reading(const YAML::Node& root, std::string file) {
                       ": the top level must be a mapping of sections (key: value), "
                       "see config/sim.yaml");
   }
+  reject_duplicate_keys(root, "", shared->file);
   return Binder(std::move(impl));
 }
 

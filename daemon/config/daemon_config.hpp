@@ -24,8 +24,9 @@ struct LoopSettings {
 };
 
 struct ActuatorSettings {
-  double ambient_c = 25.0;  // T̄ = T − ambient
-  double mass_kg = 0.0;     // 0 = unknown; with R, lets the daemon report b, k, α1, α2, λ, Cth
+  std::string name = "scp-estimator";  // identity: checkpoints, metrics label, STATUS
+  double ambient_c = 25.0;             // T̄ = T − ambient
+  double mass_kg = 0.0;  // 0 = unknown; with R, lets the daemon report b, k, α1, α2, λ, Cth
   double resistance_ohm = 0.0;  // 0 = unknown
 };
 
@@ -41,6 +42,8 @@ struct ReplaySettings {
 
 struct DriverSelection {
   std::string type = "sim";  // sim | replay | modbus | can
+  // How long the service awaits a device that has not answered since start; 0 = without limit.
+  double start_timeout_s = 0.0;
   drivers::sim::SimSettings sim;
   ReplaySettings replay;
   drivers::modbus::ModbusSettings modbus;
@@ -78,6 +81,36 @@ struct StateSettings {
   std::string directory = "/var/lib/scp-estimator";
   double checkpoint_interval_s = 60.0;
   bool warm_start = true;
+  double warm_start_theta_max = 1e6;  // see daemon_keys.cpp
+};
+
+// The output-error refinement beside the paper's law (daemon/refine/, refine/fit.hpp): a worker
+// thread below the loop fits θ to a sliding window of the samples the estimator was fed.
+struct RefineSettings {
+  bool enabled = true;
+  double window_s = 300.0;     // the sliding window fitted (memory: see docs/configuration.md)
+  double interval_s = 10.0;    // a fit every this much loop time
+  double min_window_s = 30.0;  // no fit on a window shorter than this
+  int max_iterations = 100;    // of the Gauss-Newton / Levenberg-Marquardt solver
+  int hac_lags = 0;            // Newey-West lags of the covariance; 0 = automatic
+  // A longer step between samples starts a new window; the model simulates through shorter ones
+  // (missed periods, a failed read) with the voltage the DAC held.
+  double max_gap_s = 0.2;
+};
+
+// The Prometheus textfile the daemon writes (docs/metrics: node_exporter's textfile collector).
+struct MetricsSettings {
+  std::string textfile_directory;  // "" = no textfile
+  double interval_s = 15.0;
+};
+
+// Recording in service mode: rotating CSV files written by a non-real-time thread.
+struct RecordingSettings {
+  std::string directory;              // "" = no recording
+  double rotate_size_mib = 64.0;      // a new file after this many MiB (0 = no size limit)
+  double rotate_interval_s = 3600.0;  // a new file after this long (0 = no time limit)
+  std::int64_t keep_files = 168;      // older files are deleted (0 = keep all)
+  std::string compress = "none";      // none | gzip: rotated files, by a thread below the recorder
 };
 
 struct DaemonConfig {
@@ -90,6 +123,9 @@ struct DaemonConfig {
   SafetySettings safety;
   SocketSettings socket;
   StateSettings state;
+  RefineSettings refine;
+  MetricsSettings metrics;
+  RecordingSettings recording;
   std::string log_level = "info";
 };
 

@@ -3,12 +3,14 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
 #include <string>
 
 #include "daemon/config/binder.hpp"
+#include "daemon/config/config_file.hpp"
 #include "daemon/config/daemon_config.hpp"
 #include "daemon/config/keys_can.hpp"
 #include "daemon/config/keys_modbus.hpp"
@@ -21,6 +23,7 @@ namespace scp::config {
 namespace {
 
 constexpr double kHuge = 1e300;
+constexpr double kMaxRefineSamples = 1e6;  // 80 MB of window
 
 void declare_loop(Binder loop, LoopSettings& out) {
   loop.number("period_s", out.period_s, 0.001, 1e-4, 1.0,
@@ -39,13 +42,25 @@ void declare_loop(Binder loop, LoopSettings& out) {
   rt.boolean("lock_memory", out.realtime.lock_memory, true,
              "mlockall() and prefault the heap so the loop never page-faults");
   std::int64_t heap_mib = 0;
-  rt.integer("prefault_heap_mib", heap_mib, 64, 0, 4096, "MiB of heap touched at start-up");
+  rt.integer("prefault_heap_mib", heap_mib, 0, 0, 4096, "MiB of heap touched at start-up");
   out.realtime.prefault_heap_bytes = static_cast<std::size_t>(heap_mib) << 20;
   rt.boolean("required", out.realtime.required, false,
              "true: fail to start when any real-time setting cannot be applied (else: warn)");
 }
 
 void declare_actuator(Binder actuator, ActuatorSettings& out) {
+  actuator.text("name", out.name, "scp-estimator",
+                "name of this actuator: kept in its checkpoint (a warm start from another "
+                "actuator's checkpoint is refused), the actuator label of its metrics, shown in "
+                "STATUS; give each actuator on a PC its own (letters, digits, '.', '_', '-')");
+  if (out.name.empty() || out.name.size() > 64 ||
+      out.name.find_first_not_of(
+          "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789._-") !=
+          std::string::npos) {
+    actuator.fail("name", "'" + out.name +
+                              "' is not a name of 1-64 letters, digits, '.', '_' or '-'; choose "
+                              "one such as bench-a");
+  }
   actuator.number("ambient_c", out.ambient_c, 25.0, -50.0, 100.0,
                   "ambient temperature in °C; the model uses T̄ = T − ambient");
   actuator.number("mass_kg", out.mass_kg, 0.0, 0.0, 1e3,
@@ -103,11 +118,15 @@ void declare_sim(Binder sim, drivers::sim::SimSettings& out) {
 void declare_driver(Binder driver, DriverSelection& out, const ActuatorSettings& actuator) {
   driver.choice("type", out.type, "sim", {"sim", "replay", "modbus", "can"},
                 "which device the loop talks to");
+  driver.number("start_timeout_s", out.start_timeout_s, 0.0, 0.0, 86400.0,
+                "s a device absent or silent at start is awaited (STARTING, 0 V, retried with "
+                "back-off) before the daemon exits with 69 (EX_UNAVAILABLE, not restarted by the "
+                "unit); 0 = wait without limit");
   declare_sim(driver.section("sim", "the simulated SCP actuator (type: sim)"), out.sim);
   out.sim.ambient_c = actuator.ambient_c;
   Binder replay = driver.section("replay", "a recorded CSV played back (type: replay)");
   replay.text("file", out.replay.file, "",
-              "CSV with header t,x,xdot,T,V (SI units, T in °C, uniform period)");
+              "CSV with header t,x,xdot,T,V (SI units, T in °C; t increasing, gaps allowed)");
   Binder modbus = driver.section("modbus", "a Modbus DAQ, TCP or RTU (type: modbus)");
   declare_modbus_keys(modbus, out.modbus);
   Binder can = driver.section("can", "a SocketCAN device (type: can)");
@@ -127,7 +146,8 @@ void declare_estimator(Binder est, estimator::EstimatorConfig& out) {
   est.number("beta", out.beta, 3.0, 1e-3, 1e4, "filter pole β in rad/s, eqs. (9)-(15)");
   est.number("forgetting", out.forgetting, 0.8, 1e-6, 1e3, "forgetting rate λP in 1/s, eq. (25)");
   est.number("forgetting_mechanical", out.forgetting_mechanical, 0.0, 0.0, 1e3,
-             "λP of the mechanical block θ1..θ4 alone, 1/s; 0 = forgetting. Larger follows a "
+             "λP of the mechanical block θ1..θ4 alone, 1/s; 0 = use estimator.forgetting. Larger "
+             "follows a "
              "drifting b with less lag (scripts/soak uses 10), smaller passes less noise");
   est.number("p0", out.p0, 100.0, 1e-12, 1e30,
              "P(0) = p0·diag(scale)²; the paper: 100 with scale all 1");
@@ -235,7 +255,8 @@ void declare_socket(Binder socket, SocketSettings& out) {
   } catch (const std::exception&) {
     used = 0;
   }
-  if (used != mode.size() || parsed > 0777) {
+  // An empty text would parse as nothing and leave mode 0000: nobody could connect.
+  if (mode.empty() || used != mode.size() || parsed > 0777) {
     socket.fail("mode", "'" + mode + "' is not an octal permission such as 0660 (range 0000-0777)");
   }
   out.mode = static_cast<unsigned>(parsed);
@@ -253,6 +274,70 @@ void declare_state(Binder state, StateSettings& out) {
                "seconds between checkpoints (and one at shutdown)");
   state.boolean("warm_start", out.warm_start, true,
                 "resume θ̂ and its covariance from the checkpoint at start");
+  state.number("warm_start_theta_max", out.warm_start_theta_max, 1e6, 1.0, 1e12,
+               "a checkpoint whose |θ̂_i| exceeds this many times max(estimator.scale_i, "
+               "|estimator.theta0_i|) is refused (cold start): a poisoned or diverged state "
+               "must not seed the estimator");
+}
+
+void declare_refine(Binder refine, RefineSettings& out) {
+  refine.boolean("enabled", out.enabled, true,
+                 "run the output-error refinement beside the paper's law (a worker thread "
+                 "below the loop; inline in --offline runs)");
+  refine.number("window_s", out.window_s, 300.0, 1.0, 3600.0,
+                "loop time of the sliding window fitted; memory 40 bytes per sample of it "
+                "(window_s / loop.period_s samples: 12 MB at 300 s and 1 kHz, locked with the "
+                "rest; the solver streams its sensitivities)");
+  refine.number("interval_s", out.interval_s, 10.0, 0.01, 3600.0,
+                "a fit every this much loop time once min_window_s of data are there; the "
+                "refined estimate stops being `best` when its fit is older than 3 intervals");
+  refine.number("min_window_s", out.min_window_s, 30.0, 0.01, 3600.0,
+                "no fit on less data than this (a gap starts a new window); at most window_s");
+  std::int64_t iterations = 0;
+  refine.integer("max_iterations", iterations, 100, 1, 100000,
+                 "iterations of the solver per fit before it gives up (converged: false)");
+  out.max_iterations = static_cast<int>(iterations);
+  std::int64_t lags = 0;
+  refine.integer("hac_lags", lags, 0, 0, 100000,
+                 "residual autocorrelation lags of the Newey-West covariance; 0 = automatic "
+                 "(floor(4·(N/100)^(2/9)))");
+  out.hac_lags = static_cast<int>(lags);
+  refine.number("max_gap_s", out.max_gap_s, 0.2, 1e-4, 60.0,
+                "a step between two samples longer than this starts a new window. Shorter gaps "
+                "(missed periods, failed reads, a stalled link) are simulated through with the "
+                "voltage the DAC held, which keeps the window long on a jittery link; keep it "
+                "below the timeout of a device watchdog that drops the output (the voltage "
+                "during a longer gap is not known)");
+}
+
+void declare_metrics(Binder metrics, MetricsSettings& out) {
+  metrics.text("textfile_directory", out.textfile_directory, "",
+               "directory of node_exporter's textfile collector; the daemon writes "
+               "<actuator.name>.prom there every interval_s (temporary file, then rename). "
+               "\"\" = none. Under systemd, allow it with ReadWritePaths= in a drop-in");
+  metrics.number("interval_s", out.interval_s, 15.0, 1.0, 3600.0,
+                 "seconds between two writes of the textfile");
+}
+
+void declare_recording(Binder recording, RecordingSettings& out) {
+  recording.text("directory", out.directory, "",
+                 "record every sample the estimator is fed to rotating CSV files here "
+                 "(<actuator.name>-<UTC time>.csv; \"\" = no recording). The files replay with "
+                 "--replay as they are. Under systemd, allow it with ReadWritePaths=");
+  recording.number("rotate_size_mib", out.rotate_size_mib, 64.0, 0.0, 1e6,
+                   "start a new file after this many MiB (0 = no size limit)");
+  recording.number("rotate_interval_s", out.rotate_interval_s, 3600.0, 0.0, 1e9,
+                   "start a new file after this many seconds (0 = no time limit)");
+  recording.integer("keep_files", out.keep_files, 168, 0, 1000000,
+                    "delete the oldest of this actuator's recordings beyond this many (0 = keep "
+                    "all; a compressed file counts like a plain one)");
+  recording.choice("compress", out.compress, "none", {"none", "gzip"},
+                   "gzip: compress each file once it is rotated (<name>.csv.gz, written to a "
+                   "temporary file, synced, renamed; then the plain file is deleted) on a "
+                   "low-priority thread; the file being written stays plain. --replay reads both. "
+                   "Default none: plain files can be read by any tool while being written, and "
+                   "compression costs CPU time on the machine that runs the loop (measured in "
+                   "docs/recording.md)");
 }
 
 // Checks that span keys or belong to the libraries' own validation; reported as ConfigErrors.
@@ -274,6 +359,16 @@ void cross_check(const Binder& root, DaemonConfig& cfg) {
   }
   if (est.p0 > est.p_max) {
     root.fail("estimator", "estimator.p0 must not exceed estimator.p_max");
+  }
+  if (cfg.refine.min_window_s > cfg.refine.window_s) {
+    root.fail("refine", "refine.min_window_s must not exceed refine.window_s");
+  }
+  // The window is preallocated (daemon/refine/sample_window.hpp); refuse a size that would not fit.
+  if (cfg.refine.enabled && cfg.refine.window_s / cfg.loop.period_s > kMaxRefineSamples) {
+    root.fail("refine", "refine.window_s / loop.period_s is " +
+                            std::to_string(std::llround(cfg.refine.window_s / cfg.loop.period_s)) +
+                            " samples; at most " + std::to_string(std::llround(kMaxRefineSamples)) +
+                            " fit in memory: shorten refine.window_s");
   }
   if (cfg.excitation.profile == "paper") {
     cfg.excitation.settings = excitation::paper_excitation();
@@ -324,20 +419,23 @@ void declare_daemon_keys(Binder& root, DaemonConfig& out) {
   declare_safety(root.section("safety", "limits that never depend on the estimator"), out.safety);
   declare_socket(root.section("socket", "the local JSON API"), out.socket);
   declare_state(root.section("state", "checkpoints of what the estimator learned"), out.state);
+  declare_refine(root.section("refine", "the output-error refinement beside the paper's law"),
+                 out.refine);
+  declare_metrics(root.section("metrics",
+                               "Prometheus metrics for node_exporter's textfile "
+                               "collector (scp-estimatorctl metrics prints the same)"),
+                  out.metrics);
+  declare_recording(root.section("recording",
+                                 "recording in service mode (a thread beside the "
+                                 "loop; a full or slow disk drops rows, counted in "
+                                 "STATUS, never stalls the loop)"),
+                    out.recording);
   root.choice("log_level", out.log_level, "info", {"trace", "debug", "info", "warn", "error"},
               "least severe log level written to stderr (journald)");
 }
 
 DaemonConfig load_config_file(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) {
-    throw ConfigError(path +
-                      ": cannot open the configuration file (does it exist and is it "
-                      "readable by this user?)");
-  }
-  std::stringstream text;
-  text << in.rdbuf();
-  return load_node(parse_yaml(text.str(), path), path);
+  return load_node(parse_yaml(read_config_file(path), path), path);
 }
 
 DaemonConfig load_config_text(const std::string& text, const std::string& name) {

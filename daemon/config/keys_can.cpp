@@ -76,7 +76,7 @@ void declare_can_keys(Binder& can_section, CanSettings& out) {
     b.boolean("present", sig.present, d.present, "whether the DAQ sends this signal");
     declare_layout(b, sig, d);
     b.number("stale_timeout_s", sig.stale_timeout_s, d.stale_timeout_s, 1e-4, 60.0,
-             "a value older than this faults the driver (\"CAN signal x stale\")");
+             "a value older than this faults the driver (\"CAN signal " + name + " stale\")");
     sections.emplace_back(name, std::move(b));
   }
   Binder cmd = can_section.section("command", "the frame carrying the voltage command (V)");
@@ -86,6 +86,34 @@ void declare_can_keys(Binder& can_section, CanSettings& out) {
               "send every cycle (a watchdog on the DAQ can then detect a dead daemon); false: "
               "only on change");
   sections.emplace_back("command", std::move(cmd));
+
+  Binder hb = can_section.section(
+      "heartbeat",
+      "heartbeat frame for the DAQ's communication watchdog, the only protection when the daemon "
+      "or the bus is dead (CANopen heartbeat producer; docs/driver-can.md)");
+  {
+    const drivers::can::CanHeartbeat& d = def.heartbeat;
+    drivers::can::CanHeartbeat& h = out.heartbeat;
+    hb.boolean("enabled", h.enabled, d.enabled,
+               "send the heartbeat frame (configure the DAQ's watchdog / heartbeat consumer to "
+               "set its outputs to 0 V when it stops)");
+    std::int64_t id = 0;
+    hb.integer("frame_id", id, d.frame_id, 0, 0x1FFFFFFF,
+               "CAN identifier of the heartbeat; CANopen: 0x700 + node id (0x701..0x77F)");
+    h.frame_id = static_cast<std::uint32_t>(id);
+    hb.boolean("extended", h.extended, d.extended, "29-bit identifier (else 11-bit, ≤ 0x7FF)");
+    hb.number("period_ms", h.period_ms, d.period_ms, 0.0, 65535.0,
+              "ms between heartbeats of loop time (CANopen producer heartbeat time 0x1017), "
+              "sent after the command frame of the cycle it falls due in; keep the DAQ's "
+              "timeout (consumer heartbeat time) at 2-3 x this and above a few loop periods");
+    std::string payload;
+    hb.choice("payload", payload, "counter", {"counter", "canopen"},
+              "counter: one byte counting 0..255 (an alive counter); canopen: one byte 0x05 "
+              "(NMT operational), what a CANopen heartbeat consumer expects");
+    h.payload = payload == "canopen" ? drivers::can::HeartbeatPayload::canopen
+                                     : drivers::can::HeartbeatPayload::counter;
+  }
+  sections.emplace_back("heartbeat", std::move(hb));
 
   if (can_section.is_template()) return;
   if (const auto problem = drivers::can::validate_can_settings(out)) {

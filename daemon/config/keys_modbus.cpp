@@ -152,9 +152,37 @@ void declare_modbus_keys(Binder& m, ModbusSettings& out) {
       rc.fail("max", "must be at least reconnect.initial");
     }
   }
+  {
+    Binder tm =
+        m.section("timing", "when samples were taken and commands took effect (real-time runs)");
+    tm.boolean("stamp", out.timing.stamp, true,
+               "true: stamp each sample with when the DAQ sampled it and each command with when "
+               "it landed (transaction clock + RTU wire time + the latencies below); false: the "
+               "cycle's deadline, as if the link took no time (much less accurate, "
+               "docs/numerics.md)");
+    tm.number("input_latency", out.timing.input_latency_s, 0.0, -1.0, 1.0,
+              "s the DAQ's sample is older than when the request reached it (ADC conversion or "
+              "averaging, a register image refreshed on the DAQ's own cycle)");
+    tm.number("output_latency", out.timing.output_latency_s, 0.0, -1.0, 1.0,
+              "s the DAQ's output changes after the write request reached it (DAC update "
+              "cycle)");
+  }
   m.integer("max_read_gap", gap, 8, 0, 120,
             "unused registers read and discarded to fetch two signals in one request");
   out.max_read_gap = static_cast<int>(gap);
+  {
+    Binder wd = m.section("watchdog",
+                          "heartbeat for the DAQ's communication watchdog, the only protection "
+                          "when the daemon or the link is dead (docs/driver-modbus.md)");
+    std::int64_t reg = 0, every = 0;
+    wd.integer("register", reg, -1, -1, 65535,
+               "holding register written 0/1 alternately (function 6); -1 = no heartbeat");
+    wd.integer("every_cycles", every, 10, 1, 100000,
+               "cycles between heartbeat writes; keep every_cycles x loop.period_s well below "
+               "the DAQ's watchdog timeout");
+    out.watchdog_register = static_cast<int>(reg);
+    out.watchdog_every = static_cast<int>(every);
+  }
 
   if (out.transport == drivers::modbus::Transport::rtu && (out.unit_id < 1 || out.unit_id > 247)) {
     m.fail("unit_id", "on RTU the unit id must be 1-247 (0 is broadcast, which gets no reply)");
@@ -185,6 +213,17 @@ void declare_modbus_keys(Binder& m, ModbusSettings& out) {
     b.number("min", c.min_volts, 0.0, -1000.0, 1000.0, "lowest voltage the DAQ output accepts, V");
     b.number("max", c.max_volts, 10.0, -1000.0, 1000.0,
              "highest voltage the DAQ output accepts, V");
+    std::string function;
+    b.choice("function", function, "auto", {"auto", "6", "16"},
+             "Modbus function of the write: auto = 6 (write single register) for a 16-bit "
+             "command, 16 (write multiple registers) for a 32-bit one; 16 for devices that "
+             "accept only function 16");
+    c.function = function == "6" ? 6 : function == "16" ? 16 : 0;
+    if (c.function == 6 && drivers::modbus::register_count(c.type) != 1) {
+      b.fail("function", "function 6 writes one register, but command.type " +
+                             std::string(drivers::modbus::type_name(c.type)) +
+                             " spans two; use 16 or auto");
+    }
     c.address = static_cast<int>(address);
     if (c.scale == 0.0) b.fail("scale", "must not be 0");
     if (c.max_volts < c.min_volts) b.fail("max", "must be at least command.min");

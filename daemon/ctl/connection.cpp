@@ -54,6 +54,10 @@ Connection::Connection(std::string path, double timeout_s)
     throw CtlError(kExitUnreachable, message);
   }
   version_ = read_object(timeout_s_);
+  // A server that refuses the connection (too many clients) says why in an ERROR object.
+  if (version_.value("class", "") == "ERROR")
+    throw CtlError(kExitUnreachable, "the daemon refused the connection: " +
+                                         version_.value("message", std::string()));
   if (version_.value("class", "") != "VERSION")
     throw CtlError(kExitUnreachable, path_ +
                                          " did not greet with a VERSION object; is it "

@@ -10,6 +10,7 @@ namespace scp::daemon::ctl {
 
 inline constexpr int kExitRefused = 1;      // the daemon answered ERROR or ACK ok:false
 inline constexpr int kExitUnreachable = 2;  // no daemon, timeout, protocol mismatch
+inline constexpr int kExitNotReached = 3;   // `wait`: the state was not reached in time
 
 // Carries the process exit code with a message for the user.
 class CtlError : public std::runtime_error {

@@ -43,7 +43,7 @@ std::string flag(const json& object, const char* key, const char* yes, const cha
 }
 
 std::string row(const char* format, auto... args) {
-  char buffer[256];
+  char buffer[512];
   std::snprintf(buffer, sizeof(buffer), format, args...);
   return buffer;
 }
@@ -60,12 +60,16 @@ std::string format_status(const json& s) {
   out += row("%-14s %s\n", "state", text(s, "state").c_str());
   if (s.contains("fault_reason"))
     out += row("%-14s %s\n", "fault", text(s, "fault_reason").c_str());
+  if (s.contains("waiting_for_device"))
+    out += row("%-14s %s\n", "waiting for", text(s, "waiting_for_device").c_str());
   out += row("%-14s %s, config %s\n", "release", text(s, "release").c_str(),
              s.contains("config_file") ? text(s, "config_file").c_str() : "(defaults)");
   out += row("%-14s %s s\n", "uptime", member(s, "uptime_s", "%.1f").c_str());
   out += row("%-14s %s s\n", "period", member(s, "period_s").c_str());
-  out += row("%-14s %s, voltage %s V\n", "excitation", flag(s, "excitation", "on", "off").c_str(),
-             member(s, "voltage", "%.4f").c_str());
+  out += row("%-14s %s, voltage %s V (%s), commanded %s V\n", "excitation",
+             flag(s, "excitation", "on", "off").c_str(), member(s, "voltage", "%.4f").c_str(),
+             s.contains("output") ? text(s, "output").c_str() : "?",
+             member(s, "voltage_command", "%.4f").c_str());
   out += row("%-14s %s, overruns %s, missed periods %s\n", "cycles",
              member(loop, "cycles", "%.0f").c_str(), member(loop, "overruns", "%.0f").c_str(),
              member(loop, "missed_periods", "%.0f").c_str());
@@ -80,28 +84,68 @@ std::string format_status(const json& s) {
              member(drv, "reads", "%.0f").c_str(), member(drv, "read_errors", "%.0f").c_str(),
              member(drv, "writes", "%.0f").c_str(), member(drv, "write_errors", "%.0f").c_str(),
              member(drv, "dropped", "%.0f").c_str(), member(drv, "reconnects", "%.0f").c_str());
+  if (s.contains("refine")) {
+    const json& r = s["refine"];
+    out += row("%-14s fits %s (converged %s), windows %s, last fit %s s, hand-off dropped %s\n",
+               "refinement", member(r, "fits", "%.0f").c_str(),
+               member(r, "converged_fits", "%.0f").c_str(), member(r, "windows", "%.0f").c_str(),
+               member(r, "last_fit_duration_s", "%.3f").c_str(),
+               member(r, "handoff_dropped", "%.0f").c_str());
+  }
   return out;
 }
 
 std::string format_estimate(const json& e) {
   const bool truth = e.contains("theta_true");
+  const json none;
+  const bool refined = e.contains("refined") && e["refined"].is_object();
+  const json& r = refined ? e["refined"] : none;
+  const std::string best = text(e, "best");
   std::string out = row("t = %s s, updates %s, skipped %s\n", member(e, "t", "%.3f").c_str(),
                         member(e, "updates", "%.0f").c_str(), member(e, "skipped", "%.0f").c_str());
-  out += truth ? row("%-12s %14s %12s %14s %10s\n", "parameter", "estimate", "sigma", "true",
-                     "rel.error")
-               : row("%-12s %14s %12s\n", "parameter", "estimate", "sigma");
-  const json none;
+  // Both estimates side by side; '*' marks the one the daemon recommends.
+  const char* paper_head = best == "paper" ? "paper*" : "paper";
+  const char* refined_head = best == "refined" ? "refined*" : "refined";
+  out += row("%-12s %14s %10s", "parameter", paper_head, "sigma");
+  if (refined) out += row(" %14s %10s", refined_head, "sigma");
+  if (truth) out += row(" %14s %10s", "true", "rel.error");
+  if (truth && refined) out += row(" %10s", "refined");
+  out += '\n';
   const json& theta_hat = e.contains("theta_hat") ? e["theta_hat"] : none;
   const json& sigma = e.contains("sigma") ? e["sigma"] : none;
   const json& theta_true = truth ? e["theta_true"] : none;
   const json& rel = e.contains("rel_error") ? e["rel_error"] : none;
+  const json& r_hat = refined && r.contains("theta_hat") ? r["theta_hat"] : none;
+  const json& r_sigma = refined && r.contains("sigma") ? r["sigma"] : none;
+  const json& r_rel = refined && r.contains("rel_error") ? r["rel_error"] : none;
   for (std::size_t i = 0; i < kThetaNames.size(); ++i) {
-    out += row("%-12s %14s %12s", kThetaNames[i], element(theta_hat, i, "%.7g").c_str(),
+    out += row("%-12s %14s %10s", kThetaNames[i], element(theta_hat, i, "%.7g").c_str(),
                element(sigma, i, "%.3g").c_str());
+    if (refined)
+      out +=
+          row(" %14s %10s", element(r_hat, i, "%.7g").c_str(), element(r_sigma, i, "%.3g").c_str());
     if (truth)
       out += row(" %14s %10s", element(theta_true, i, "%.7g").c_str(),
                  element(rel, i, "%.2e").c_str());
+    if (truth && refined) out += row(" %10s", element(r_rel, i, "%.2e").c_str());
     out += '\n';
+  }
+  const json& biased = e.contains("paper_biased") ? e["paper_biased"] : none;
+  out += row("best: %s; paper law biased: mechanical %s, thermal %s\n", best.c_str(),
+             flag(biased, "mechanical", "yes", "no").c_str(),
+             flag(biased, "thermal", "yes", "no").c_str());
+  if (refined) {
+    const json& w = r.contains("window") ? r["window"] : none;
+    const json& fitted = r.contains("fitted_at") ? r["fitted_at"] : none;
+    out +=
+        row("refined: window [%s, %s] s (%s samples), fitted at t = %s s (%s), %s, %s "
+            "iterations%s%s\n",
+            member(w, "t_begin", "%.1f").c_str(), member(w, "t_end", "%.1f").c_str(),
+            member(w, "samples", "%.0f").c_str(), member(fitted, "t", "%.1f").c_str(),
+            fitted.is_object() ? text(fitted, "utc").c_str() : "-",
+            flag(r, "converged", "converged", "NOT converged").c_str(),
+            member(r, "iterations", "%.0f").c_str(), r.contains("message") ? ": " : "",
+            r.contains("message") ? text(r, "message").c_str() : "");
   }
   const json& excitation = e.contains("excitation") ? e["excitation"] : none;
   const json& converged = e.contains("converged") ? e["converged"] : none;
@@ -130,7 +174,18 @@ std::string format_estimate_line(const json& e) {
     if (i > 0) out += ' ';
     out += element(theta_hat, i, "%.7g");
   }
-  return out + "]\n";
+  out += "]";
+  if (e.contains("refined") && e["refined"].contains("theta_hat")) {
+    const json& r = e["refined"]["theta_hat"];
+    out += " refined=[";
+    for (std::size_t i = 0; i < kThetaNames.size(); ++i) {
+      if (i > 0) out += ' ';
+      out += element(r, i, "%.7g");
+    }
+    out += "]";
+  }
+  if (e.contains("best")) out += " best=" + text(e, "best");
+  return out + "\n";
 }
 
 }  // namespace scp::daemon::ctl

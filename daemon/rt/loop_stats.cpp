@@ -44,6 +44,7 @@ void LoopStatsAccumulator::record_lateness_ns(std::int64_t lateness_ns) noexcept
   ++stats_.cycles;
   lateness_sum_us_ += us;
   ++stats_.lateness_histogram[lateness_bin(us)];
+  if (fine_ != nullptr) fine_->record(lateness_ns);
 }
 
 void LoopStatsAccumulator::record_exec_ns(std::int64_t exec_ns) noexcept {
@@ -54,7 +55,9 @@ void LoopStatsAccumulator::record_exec_ns(std::int64_t exec_ns) noexcept {
 }
 
 void LoopStatsAccumulator::reset() noexcept {
+  LatencyHistogram* const fine = fine_;
   *this = LoopStatsAccumulator{};
+  fine_ = fine;
 }
 
 void LoopStatsAccumulator::fill(daemon::LoopStatistics& out) const noexcept {

@@ -5,6 +5,7 @@
 #include <cstdint>
 
 #include "daemon/published_state.hpp"
+#include "daemon/rt/latency_histogram.hpp"
 #include "daemon/rt/periodic_timer.hpp"
 
 namespace scp::rt {
@@ -28,6 +29,10 @@ class LoopStatsAccumulator {
 
   void reset() noexcept;
 
+  // Also records every lateness into `fine` (may be null), the 1 %-resolution histogram that
+  // STATUS reads lock-free from the server thread. It is not owned and survives reset().
+  void attach(LatencyHistogram* fine) noexcept { fine_ = fine; }
+
   // Copies the statistics into `out`, computing the mean, the median and the 99th percentile: each
   // is read from the histogram, interpolated linearly within the bin that holds its rank
   // (the open last bin uses the observed maximum as its upper edge), then clamped to [min, max].
@@ -47,6 +52,7 @@ class LoopStatsAccumulator {
   double lateness_sum_us_ = 0.0;
   double exec_sum_us_ = 0.0;
   std::uint64_t exec_count_ = 0;
+  LatencyHistogram* fine_ = nullptr;
 };
 
 }  // namespace scp::rt

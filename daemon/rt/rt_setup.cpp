@@ -167,11 +167,20 @@ std::vector<std::string> apply_rt_settings(const RtSettings& settings) {
   }
   Outcome outcome(settings.required);
   set_affinity(settings.cpus, outcome);
-  // Memory before priority: prefaulting 64 MiB at SCHED_FIFO 80 would starve other threads on
-  // this CPU for the duration.
+  // Memory before priority: prefaulting a large heap at SCHED_FIFO 80 would starve other threads
+  // on this CPU for the duration.
   lock_and_prefault(settings, outcome);
   set_priority(settings.priority, outcome);
   return outcome.take();
+}
+
+bool set_default_thread_stack(std::size_t bytes) noexcept {
+  pthread_attr_t attr;
+  if (pthread_attr_init(&attr) != 0) return false;
+  const bool ok =
+      pthread_attr_setstacksize(&attr, bytes) == 0 && pthread_setattr_default_np(&attr) == 0;
+  pthread_attr_destroy(&attr);
+  return ok;
 }
 
 }  // namespace scp::rt

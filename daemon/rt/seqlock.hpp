@@ -54,6 +54,20 @@ class Seqlock {
     return value;
   }
 
+  // One attempt, never waiting: false (and `out` untouched) while a store is in progress or one
+  // overlapped the copy. For a real-time reader of a non-real-time writer: spinning in load()
+  // could wait on a writer the reader itself preempted.
+  bool try_load(T& out) const noexcept {
+    std::uint64_t words[kWords];
+    const std::uint64_t before = seq_.load(std::memory_order_acquire);
+    if (before & 1U) return false;
+    for (std::size_t i = 0; i < kWords; ++i) words[i] = data_[i].load(std::memory_order_relaxed);
+    std::atomic_thread_fence(std::memory_order_acquire);
+    if (seq_.load(std::memory_order_relaxed) != before) return false;
+    std::memcpy(&out, words, sizeof(T));
+    return true;
+  }
+
   // Number of completed stores; lets a reader tell whether anything new was published.
   std::uint64_t version() const noexcept { return seq_.load(std::memory_order_acquire) / 2; }
 

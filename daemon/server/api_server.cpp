@@ -76,6 +76,7 @@ struct PendingCommand {
   bool enable = false;
   Clock::time_point deadline;
   bool pushed = false;
+  CommandRecord record;  // for the audit trail
 };
 
 CommandKind command_kind(RequestKind kind, bool enable) noexcept {
@@ -108,13 +109,68 @@ sockaddr_un socket_address(const std::string& path) {
 }  // namespace
 
 struct ApiServer::Impl {
-  Impl(ServerSettings s, ServerInfo i, const rt::Seqlock<PublishedState>& st, CommandRing& r)
-      : settings(std::move(s)), info(std::move(i)), state(st), ring(r) {}
+  Impl(ServerSettings s, ServerInfo i, const rt::Seqlock<PublishedState>& st, CommandRing& r,
+       const rt::Seqlock<refine::RefinedView>* rf, const rt::LatencyHistogram* lt)
+      : settings(std::move(s)), info(std::move(i)), state(st), ring(r), refined(rf), lateness(lt) {
+    if (lateness != nullptr) lateness_copy = std::make_unique<rt::LatencyHistogram::Snapshot>();
+  }
 
   ServerSettings settings;
   ServerInfo info;
   const rt::Seqlock<PublishedState>& state;
   CommandRing& ring;
+  const rt::Seqlock<refine::RefinedView>* refined;
+  const rt::LatencyHistogram* lateness;
+  std::unique_ptr<rt::LatencyHistogram::Snapshot> lateness_copy;  // 30 KiB, reused
+
+  // The ESTIMATE line changes only when the loop publishes (once a cycle), while clients may ask
+  // many times a cycle: it is rendered once per publication and served from here. The key is
+  // read before the snapshot, so the cached line is never older than its key.
+  std::string estimate_cache;
+  std::uint64_t estimate_cache_state = 0;
+  std::uint64_t estimate_cache_refined = 0;
+  bool estimate_cache_valid = false;
+
+  // Both published snapshots, read together.
+  const std::string& estimate_reply() {
+    const std::uint64_t state_version = state.version();
+    const std::uint64_t refined_version = refined != nullptr ? refined->version() : 0;
+    if (estimate_cache_valid && state_version == estimate_cache_state &&
+        refined_version == estimate_cache_refined) {
+      return estimate_cache;
+    }
+    const PublishedState now = state.load();
+    if (refined == nullptr) {
+      estimate_cache = render_estimate(now.estimate, nullptr, now.uptime_s);
+    } else {
+      const refine::RefinedView view = refined->load();
+      estimate_cache = render_estimate(now.estimate, &view, now.uptime_s);
+    }
+    estimate_cache_state = state_version;
+    estimate_cache_refined = refined_version;
+    estimate_cache_valid = true;
+    return estimate_cache;
+  }
+  std::string status_reply() {
+    const PublishedState now = state.load();
+    const rt::LatencyHistogram::Snapshot* fine = nullptr;
+    if (lateness != nullptr) {
+      lateness->snapshot(*lateness_copy);
+      fine = lateness_copy.get();
+    }
+    const CommandRecord* command = last_command ? &*last_command : nullptr;
+    if (refined == nullptr) return render_status(now, info, nullptr, fine, command);
+    const refine::RefinedView view = refined->load();
+    return render_status(now, info, &view, fine, command);
+  }
+  // The audit trail: every outcome of a mutating request is logged and the latest kept.
+  std::optional<CommandRecord> last_command;
+  void audit(CommandRecord record, CommandOutcome outcome, std::string message) {
+    record.outcome = outcome;
+    record.message = std::move(message);
+    log_audit(record);
+    last_command = std::move(record);
+  }
   AuthPolicy policy;
 
   int listen_fd = -1;
@@ -135,6 +191,10 @@ struct ApiServer::Impl {
   Clock::duration tick{};
   bool accept_paused = false;
   Clock::time_point accept_resume;
+  std::size_t output_cap = 0;  // per client, from the output budget (settings.hpp)
+  Clock::time_point refusal_window_start;
+  int refusals_logged = 0;
+  std::uint64_t refusals_suppressed = 0;
 
   void start();
   void stop() noexcept;
@@ -148,6 +208,8 @@ struct ApiServer::Impl {
   void handle_line(std::uint64_t id, Client& client, std::string_view line);
   void send(Client& client, std::string_view text);
   void flush(Client& client);
+  void log_refusal(const std::optional<PeerIdentity>& peer, const std::string& what);
+  bool refusal_may_log(Clock::time_point now);
   void update_events(std::uint64_t id, Client& client);
   void begin_close(Client& client, std::string_view error_message);
   void service_commands(Clock::time_point now);
@@ -167,6 +229,10 @@ void ApiServer::Impl::start() {
   }
   const std::string& path = settings.socket_path;
   const sockaddr_un addr = socket_address(path);
+  output_cap =
+      std::min(settings.max_output_bytes,
+               settings.output_budget_bytes /
+                   std::max<std::size_t>(1, settings.max_clients + settings.privileged_reserve));
 
   struct stat st {};
   if (::lstat(path.c_str(), &st) == 0) {
@@ -344,18 +410,23 @@ void ApiServer::Impl::on_accept() {
       spdlog::warn("socket server: accept failed: {}", errno_text(err));
       return;
     }
-    if (clients.size() >= settings.max_clients) {
+    std::optional<PeerIdentity> peer = peer_identity(fd);
+    const bool privileged = peer && is_privileged(*peer, policy);
+    const std::size_t limit = settings.max_clients + (privileged ? settings.privileged_reserve : 0);
+    if (clients.size() >= limit) {
       const std::string text =
-          render_error("too many clients: " + std::to_string(settings.max_clients) +
-                       " already connected (socket.max_clients); try again later");
+          render_error("too many clients: " + std::to_string(clients.size()) +
+                       " already connected (socket.max_clients " +
+                       std::to_string(settings.max_clients) + "); try again later");
       [[maybe_unused]] const auto n = ::send(fd, text.data(), text.size(), MSG_NOSIGNAL);
       ::close(fd);
+      log_refusal(peer, "too many clients");
       continue;
     }
     const std::uint64_t id = next_client_id++;
     Client& client = clients[id];
     client.fd = fd;
-    client.peer = peer_identity(fd);
+    client.peer = std::move(peer);
     client.last_request = Clock::now();
     clients_now = clients.size();
     epoll_event ev{};
@@ -444,10 +515,10 @@ void ApiServer::Impl::handle_line(std::uint64_t id, Client& client, std::string_
   }
   switch (request.kind) {
     case RequestKind::status:
-      send(client, render_status(state.load(), info));
+      send(client, status_reply());
       return;
     case RequestKind::estimate:
-      send(client, render_estimate(state.load().estimate));
+      send(client, estimate_reply());
       return;
     case RequestKind::watch:
       client.watching = request.enable;
@@ -464,14 +535,30 @@ void ApiServer::Impl::handle_line(std::uint64_t id, Client& client, std::string_
       break;
   }
   const char* name = request_name(request.kind);
+  CommandRecord record;
+  record.name = request.kind == RequestKind::excitation
+                    ? std::string(name) + (request.enable ? " on" : " off")
+                    : std::string(name);
+  record.peer = client.peer;
+  record.unix_ns = wall_clock_ns();
   if (!client.peer || !is_privileged(*client.peer, policy)) {
-    send(client, render_error(permission_denied_message(name, policy)));
+    const std::string denied = permission_denied_message(name, policy);
+    send(client, render_error(denied));
+    // Rate-limited like every refusal: an unprivileged flood must not flood the journal.
+    if (refusal_may_log(Clock::now())) {
+      audit(std::move(record), CommandOutcome::refused, "permission denied");
+    } else {
+      last_command = std::move(record);
+      last_command->outcome = CommandOutcome::refused;
+      last_command->message = "permission denied";
+    }
     return;
   }
   if (commands.size() >= kCommandRingSize) {
-    send(client,
-         render_error(std::string("busy: ") + std::to_string(commands.size()) +
-                      " commands are waiting for the loop; retry '" + name + "' in a moment"));
+    const std::string busy = "busy: " + std::to_string(commands.size()) +
+                             " commands are waiting for the loop; retry '" + name + "' in a moment";
+    send(client, render_error(busy));
+    audit(std::move(record), CommandOutcome::busy, busy);
     return;
   }
   PendingCommand command;
@@ -480,7 +567,8 @@ void ApiServer::Impl::handle_line(std::uint64_t id, Client& client, std::string_
   command.kind = request.kind;
   command.enable = request.enable;
   command.deadline = now + kAckTimeout;
-  commands.push_back(command);
+  command.record = std::move(record);
+  commands.push_back(std::move(command));
   client.awaiting_ack = true;
   service_commands(now);
 }
@@ -490,7 +578,40 @@ void ApiServer::Impl::send(Client& client, std::string_view text) {
   client.out.append(text);
   flush(client);
   // A client that stops reading must not make the server hoard memory for it.
-  if (client.out.size() > settings.max_output_bytes) client.dead = true;
+  if (client.out.size() > output_cap) {
+    client.dead = true;
+    log_refusal(client.peer, "dropped: " + std::to_string(client.out.size()) +
+                                 " bytes of unread output (per-client cap " +
+                                 std::to_string(output_cap) + ")");
+  }
+}
+
+// Refusals are logged with who asked, at most a few lines per second: a flood of connections
+// must not flood the journal too.
+bool ApiServer::Impl::refusal_may_log(Clock::time_point now) {
+  if (now - refusal_window_start > std::chrono::seconds(1)) {
+    if (refusals_suppressed > 0)
+      spdlog::warn("socket server: {} more refusals not logged", refusals_suppressed);
+    refusal_window_start = now;
+    refusals_logged = 0;
+    refusals_suppressed = 0;
+  }
+  if (refusals_logged >= 5) {
+    ++refusals_suppressed;
+    return false;
+  }
+  ++refusals_logged;
+  return true;
+}
+
+void ApiServer::Impl::log_refusal(const std::optional<PeerIdentity>& peer,
+                                  const std::string& what) {
+  if (!refusal_may_log(Clock::now())) return;
+  if (peer) {
+    spdlog::warn("socket server: client uid {} pid {}: {}", peer->uid, peer->pid, what);
+  } else {
+    spdlog::warn("socket server: client of unknown identity: {}", what);
+  }
 }
 
 void ApiServer::Impl::flush(Client& client) {
@@ -508,6 +629,8 @@ void ApiServer::Impl::flush(Client& client) {
     }
   }
   client.out.erase(0, sent);
+  // A burst once buffered must not keep its memory for the life of the connection.
+  if (client.out.empty() && client.out.capacity() > 65536) std::string().swap(client.out);
   if (client.closing && client.out.empty()) client.dead = true;
 }
 
@@ -560,6 +683,9 @@ void ApiServer::Impl::service_commands(Clock::time_point now) {
             snapshot.last_ack.message.data(),
             strnlen(snapshot.last_ack.message.data(), snapshot.last_ack.message.size()));
         answer(command.client, render_ack(name, snapshot.last_ack.ok, message));
+        audit(std::move(command.record),
+              snapshot.last_ack.ok ? CommandOutcome::done : CommandOutcome::failed,
+              std::string(message));
         commands.pop_front();
         continue;
       }
@@ -569,6 +695,8 @@ void ApiServer::Impl::service_commands(Clock::time_point now) {
              render_error(std::string("the loop did not answer '") + name +
                           "' within 2 s; check 'scp-estimatorctl status' and the daemon's log "
                           "(is the loop stalled or stopping?)"));
+      audit(std::move(command.record), CommandOutcome::timeout,
+            "the loop did not answer within 2 s");
       commands.pop_front();
       continue;
     }
@@ -577,6 +705,7 @@ void ApiServer::Impl::service_commands(Clock::time_point now) {
       answer(command.client, render_error(std::string("busy: the loop's command queue is full; "
                                                       "retry '") +
                                           name + "' in a moment"));
+      audit(std::move(command.record), CommandOutcome::busy, "the loop's command queue is full");
       commands.pop_front();
       continue;
     }
@@ -610,7 +739,7 @@ void ApiServer::Impl::on_tick() {
     update_events(id, it->second);
   }
 
-  std::string estimate_line;  // rendered once per tick, shared by every watcher due now
+  std::string_view estimate_line;  // rendered once per publication, shared by every watcher
   const auto idle_limit = std::chrono::duration_cast<Clock::duration>(
       std::chrono::duration<double>(settings.idle_timeout_s));
   for (auto& [id, client] : clients) {
@@ -620,7 +749,7 @@ void ApiServer::Impl::on_tick() {
       continue;
     }
     if (client.watching && now + tick / 2 >= client.next_watch) {
-      if (estimate_line.empty()) estimate_line = render_estimate(state.load().estimate);
+      if (estimate_line.empty()) estimate_line = estimate_reply();
       send(client, estimate_line);
       // Keep the average rate exact; after a long stall restart the phase instead of bursting.
       client.next_watch += client.watch_period;
@@ -670,8 +799,11 @@ void ApiServer::Impl::rearm_timer() {
 // ---- public face ------------------------------------------------------------------------------
 
 ApiServer::ApiServer(ServerSettings settings, ServerInfo info,
-                     const rt::Seqlock<PublishedState>& state, CommandRing& commands)
-    : impl_(std::make_unique<Impl>(std::move(settings), std::move(info), state, commands)) {}
+                     const rt::Seqlock<PublishedState>& state, CommandRing& commands,
+                     const rt::Seqlock<refine::RefinedView>* refined,
+                     const rt::LatencyHistogram* lateness)
+    : impl_(std::make_unique<Impl>(std::move(settings), std::move(info), state, commands, refined,
+                                   lateness)) {}
 
 ApiServer::~ApiServer() {
   stop();

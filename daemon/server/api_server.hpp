@@ -8,6 +8,8 @@
 #include <memory>
 
 #include "daemon/published_state.hpp"
+#include "daemon/refine/refined_view.hpp"
+#include "daemon/rt/latency_histogram.hpp"
 #include "daemon/rt/seqlock.hpp"
 #include "daemon/rt/spsc_ring.hpp"
 #include "daemon/server/peer_auth.hpp"
@@ -20,9 +22,12 @@ using CommandRing = rt::SpscRing<Command, kCommandRingSize>;
 
 class ApiServer {
  public:
-  // `state` and `commands` must outlive the server. The server is the ring's only producer.
+  // `state`, `commands` and `refined` must outlive the server. The server is the ring's only
+  // producer. `refined` is null when the refinement is disabled. `lateness` (may be null) is the
+  // loop's fine lateness histogram, read lock-free for STATUS.
   ApiServer(ServerSettings settings, ServerInfo info, const rt::Seqlock<PublishedState>& state,
-            CommandRing& commands);
+            CommandRing& commands, const rt::Seqlock<refine::RefinedView>* refined = nullptr,
+            const rt::LatencyHistogram* lateness = nullptr);
   ~ApiServer();  // stop()s
   ApiServer(const ApiServer&) = delete;
   ApiServer& operator=(const ApiServer&) = delete;

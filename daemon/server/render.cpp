@@ -1,7 +1,10 @@
 #include "daemon/server/render.hpp"
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <ctime>
+#include <limits>
 #include <nlohmann/json.hpp>
 
 namespace scp::daemon::server {
@@ -32,7 +35,104 @@ json number_array(const std::array<double, N>& values) {
   return out;
 }
 
+// |θ̂ᵢ − θᵢ| / |θᵢ|; a zero true value has no relative error (NaN renders as null).
+json relative_errors(const std::array<double, 6>& hat, const std::array<double, 6>& truth) {
+  std::array<double, 6> rel{};
+  for (std::size_t i = 0; i < rel.size(); ++i) {
+    rel[i] = truth[i] != 0.0 ? std::abs(hat[i] - truth[i]) / std::abs(truth[i])
+                             : std::numeric_limits<double>::quiet_NaN();
+  }
+  return number_array(rel);
+}
+
+json per_block(const std::array<bool, 2>& flags) {
+  return {{"mechanical", flags[0]}, {"thermal", flags[1]}};
+}
+
+json channels(const std::array<double, 2>& values) {
+  json out = json::object();
+  put_finite(out, "x", values[0]);
+  put_finite(out, "T", values[1]);
+  return out;
+}
+
 }  // namespace
+
+std::string utc_time(std::int64_t unix_ns) {
+  const std::time_t seconds = static_cast<std::time_t>(unix_ns / 1'000'000'000);
+  const auto millis = static_cast<int>((unix_ns % 1'000'000'000) / 1'000'000);
+  std::tm tm{};
+  gmtime_r(&seconds, &tm);
+  char text[40];
+  const std::size_t n = std::strftime(text, sizeof text, "%Y-%m-%dT%H:%M:%S", &tm);
+  std::snprintf(text + n, sizeof text - n, ".%03dZ", millis);
+  return text;
+}
+
+void put_wall_clock(json& out, std::int64_t unix_ns) {
+  if (unix_ns <= 0) return;  // not yet published by a cycle
+  out["utc"] = utc_time(unix_ns);
+  out["unix_ns"] = unix_ns;
+}
+
+void put_fault_history(json& out, const FaultHistory& faults) {
+  out["fault_count"] = faults.count;
+  out["recoveries"] = faults.recoveries;
+  out["faults_cleared"] = faults.cleared;
+  if (faults.count == 0) return;
+  json last = {{"reason", std::string(fixed_text(faults.last_reason))}};
+  put_finite(last, "t", faults.last_t);
+  put_wall_clock(last, faults.last_unix_ns);
+  out["last_fault"] = last;
+}
+
+void put_refinement(json& out, const EstimateView& estimate, const refine::RefinedView* refined,
+                    double now_t) {
+  const bool fitted = refined != nullptr && refined->valid;
+  out["paper_biased"] = per_block(fitted ? refined->paper_biased : std::array<bool, 2>{});
+  out["best"] = fitted && refine::refined_is_best(*refined, now_t) ? "refined" : "paper";
+  if (!fitted) return;
+  const refine::RefinedView& r = *refined;
+  json o = json::object();
+  o["theta_hat"] = number_array(r.theta_hat);
+  o["sigma"] = number_array(r.sigma);
+  json window = json::object();
+  put_finite(window, "t_begin", r.t_begin);
+  put_finite(window, "t_end", r.t_end);
+  window["samples"] = r.samples;
+  o["window"] = window;
+  json fitted_at = json::object();
+  put_finite(fitted_at, "t", r.fitted_at_t);
+  fitted_at["utc"] = utc_time(r.fitted_at_unix_ns);
+  fitted_at["unix_ns"] = r.fitted_at_unix_ns;
+  o["fitted_at"] = fitted_at;
+  put_finite(o, "duration_s", r.duration_s);
+  o["residual_rms"] = channels(r.residual_rms);
+  o["noise_sigma"] = channels(r.noise_sigma);
+  o["converged"] = r.converged;
+  o["iterations"] = r.iterations;
+  const std::string_view message{r.message.data(), strnlen(r.message.data(), r.message.size())};
+  if (!message.empty()) o["message"] = std::string(message);
+  o["seed"] = refine::seed_name(r.seed);
+  o["fits"] = r.fits;
+  o["converged_fits"] = r.converged_fits;
+  o["windows"] = r.windows;
+  if (r.bias_tested) {
+    json test = json::object();
+    for (std::size_t b = 0; b < 2; ++b) {
+      json block = json::object();
+      put_finite(block, "statistic", r.bias_statistic[b]);
+      put_finite(block, "threshold", r.bias_threshold[b]);
+      test[b == 0 ? "mechanical" : "thermal"] = block;
+    }
+    o["bias_test"] = test;
+  }
+  if (estimate.has_truth) {
+    o["theta_true"] = number_array(estimate.theta_true);
+    o["rel_error"] = relative_errors(r.theta_hat, estimate.theta_true);
+  }
+  out["refined"] = o;
+}
 
 const char* state_name(RunState state) noexcept {
   switch (state) {
@@ -47,6 +147,22 @@ const char* state_name(RunState state) noexcept {
   }
   return "unknown";
 }
+
+namespace {
+
+// The fine histogram's non-empty buckets as [lower_ns, upper_ns, count] (upper exclusive): a
+// client subtracts two of them to get the percentiles of the window between (scripts/bench).
+json fine_buckets(const rt::LatencyHistogram::Snapshot& h) {
+  json buckets = json::array();
+  for (std::size_t i = 0; i < h.counts.size(); ++i) {
+    if (h.counts[i] == 0) continue;
+    buckets.push_back(
+        {rt::LatencyHistogram::lower_ns(i), rt::LatencyHistogram::upper_ns(i), h.counts[i]});
+  }
+  return {{"buckets", buckets}, {"count", h.total}, {"max", h.max_ns}};
+}
+
+}  // namespace
 
 double histogram_lower_edge_us(std::size_t bin) noexcept {
   return bin == 0 ? 0.0 : std::ldexp(1.0, static_cast<int>(bin) - 1);
@@ -75,16 +191,31 @@ std::string render_watch(bool enable, double rate_hz) {
   return line(out);
 }
 
-std::string render_status(const PublishedState& state, const ServerInfo& info) {
+std::string render_status(const PublishedState& state, const ServerInfo& info,
+                          const refine::RefinedView* refined,
+                          const rt::LatencyHistogram::Snapshot* lateness_ns,
+                          const CommandRecord* last_command) {
   json out = {{"class", "STATUS"}, {"release", info.release}, {"driver", info.driver}};
+  if (!info.actuator.empty()) out["actuator"] = info.actuator;
   if (!info.config_file.empty()) out["config_file"] = info.config_file;
   out["state"] = state_name(state.state);
   const std::string_view reason = fixed_text(state.fault_reason);
   if (!reason.empty()) out["fault_reason"] = std::string(reason);
+  if (state.state == RunState::starting && state.awaiting_device) {
+    // The device has not delivered a reading since start: say why while waiting for it.
+    const std::string_view waiting = fixed_text(state.waiting_reason);
+    out["waiting_for_device"] = waiting.empty() ? "first reading" : std::string(waiting);
+  }
+  put_wall_clock(out, state.unix_ns);
+  put_fault_history(out, state.faults);
   put_finite(out, "uptime_s", state.uptime_s);
   put_finite(out, "period_s", state.period_s);
   out["excitation"] = state.excitation_enabled;
-  put_finite(out, "voltage", state.voltage_command);
+  // The voltage the device acknowledged, not the loop's wish: when the 0 V of a fault could not
+  // be delivered (link down) the device may still hold it, and "output" says so.
+  put_finite(out, "voltage", state.driver.output_v);
+  put_finite(out, "voltage_command", state.voltage_command);
+  out["output"] = state.driver.output_confirmed ? "confirmed" : "unconfirmed";
 
   json sample = json::object();
   put_finite(sample, "t", state.last_sample.t);
@@ -98,8 +229,14 @@ std::string render_status(const PublishedState& state, const ServerInfo& info) {
   json lateness = json::object();
   put_finite(lateness, "min", loop.lateness_min_us);
   put_finite(lateness, "mean", loop.lateness_mean_us);
-  put_finite(lateness, "p50", loop.lateness_p50_us);
-  put_finite(lateness, "p99", loop.lateness_p99_us);
+  if (lateness_ns != nullptr && lateness_ns->total > 0) {
+    put_finite(lateness, "p50", lateness_ns->quantile_ns(0.50) * 1e-3);
+    put_finite(lateness, "p99", lateness_ns->quantile_ns(0.99) * 1e-3);
+    put_finite(lateness, "p99_9", lateness_ns->quantile_ns(0.999) * 1e-3);
+  } else {
+    put_finite(lateness, "p50", loop.lateness_p50_us);
+    put_finite(lateness, "p99", loop.lateness_p99_us);
+  }
   put_finite(lateness, "max", loop.lateness_max_us);
   json exec = json::object();
   put_finite(exec, "mean", loop.exec_mean_us);
@@ -117,18 +254,38 @@ std::string render_status(const PublishedState& state, const ServerInfo& info) {
                  {"exec_us", exec},
                  {"histogram", {{"edges_us", edges}, {"counts", counts}}}};
   if (loop.allocations_counted) out["loop"]["allocations"] = loop.allocations;
+  if (lateness_ns != nullptr) out["loop"]["lateness_histogram_ns"] = fine_buckets(*lateness_ns);
 
   const drivers::DriverStats& driver = state.driver;
-  out["driver_stats"] = {{"reads", driver.reads},     {"read_errors", driver.read_errors},
-                         {"writes", driver.writes},   {"write_errors", driver.write_errors},
-                         {"dropped", driver.dropped}, {"reconnects", driver.reconnects},
+  out["driver_stats"] = {{"reads", driver.reads},
+                         {"read_errors", driver.read_errors},
+                         {"writes", driver.writes},
+                         {"write_errors", driver.write_errors},
+                         {"dropped", driver.dropped},
+                         {"reconnects", driver.reconnects},
+                         {"late_replies", driver.late_replies},
+                         {"stretched_stamps", driver.stretched_stamps},
                          {"link_up", driver.link_up}};
+  if (driver.last_error != nullptr && driver.last_error[0] != '\0')
+    out["driver_stats"]["last_error"] = driver.last_error;
+  if (refined != nullptr) {
+    json r = {{"fits", refined->fits},
+              {"converged_fits", refined->converged_fits},
+              {"windows", refined->windows},
+              {"handoff_dropped", state.handoff_dropped}};
+    if (refined->valid) put_finite(r, "last_fit_duration_s", refined->duration_s);
+    out["refine"] = r;
+  }
+  if (last_command != nullptr) put_last_command(out, *last_command);
+  if (state.recording) out["recording"] = {{"dropped_rows", state.record_dropped}};
   return line(out);
 }
 
-std::string render_estimate(const EstimateView& estimate) {
+std::string render_estimate(const EstimateView& estimate, const refine::RefinedView* refined,
+                            double now_t) {
   json out = {{"class", "ESTIMATE"}};
   put_finite(out, "t", estimate.t);
+  put_wall_clock(out, estimate.unix_ns);
   out["theta_hat"] = number_array(estimate.theta_hat);
   out["sigma"] = number_array(estimate.sigma);
   out["eps"] = number_array(estimate.eps);
@@ -147,14 +304,7 @@ std::string render_estimate(const EstimateView& estimate) {
   out["skipped"] = estimate.skipped;
   if (estimate.has_truth) {
     out["theta_true"] = number_array(estimate.theta_true);
-    std::array<double, 6> rel{};
-    for (std::size_t i = 0; i < rel.size(); ++i) {
-      // A zero true value has no relative error; NaN renders as null.
-      const double truth = estimate.theta_true[i];
-      rel[i] = truth != 0.0 ? std::abs(estimate.theta_hat[i] - truth) / std::abs(truth)
-                            : std::numeric_limits<double>::quiet_NaN();
-    }
-    out["rel_error"] = number_array(rel);
+    out["rel_error"] = relative_errors(estimate.theta_hat, estimate.theta_true);
   }
   if (estimate.has_physical) {
     static constexpr std::array<const char*, 6> kNames{"b",      "k",      "alpha1",
@@ -164,6 +314,7 @@ std::string render_estimate(const EstimateView& estimate) {
       put_finite(physical, kNames[i], estimate.physical[i]);
     out["physical"] = physical;
   }
+  put_refinement(out, estimate, refined, now_t);
   return line(out);
 }
 

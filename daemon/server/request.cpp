@@ -79,6 +79,10 @@ bool is_mutating(RequestKind kind) noexcept {
 }
 
 ParsedRequest parse_request(std::string_view line) {
+  // A NUL would end the text for a C-string reader; no valid JSON request contains one.
+  if (const auto nul = line.find('\0'); nul != std::string_view::npos)
+    return fail("malformed request: NUL byte at offset " + std::to_string(nul) +
+                "; send one JSON object per line, e.g. {\"request\":\"status\"}");
   // The framing layer strips '\n'; a CRLF client leaves '\r', which JSON treats as whitespace.
   json doc;
   try {

@@ -94,7 +94,26 @@ void write_atomically(const std::string& path, const std::string& data) {
     fail_write(path, what, err);
   };
   {
-    Fd fd(::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0640));
+    // O_EXCL | O_NOFOLLOW: never write through a name someone else prepared (a symlink planted
+    // in the state directory would make a root daemon overwrite the file it points to).
+    constexpr int kFlags = O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC;
+    int raw = ::open(tmp.c_str(), kFlags, 0640);
+    if (raw < 0 && errno == EEXIST) {
+      // Ours from an earlier process with the same pid (a container restarts at the same pid)
+      // may go; anything else is refused.
+      struct stat st {};
+      if (::lstat(tmp.c_str(), &st) == 0 && S_ISREG(st.st_mode) && st.st_uid == ::geteuid() &&
+          st.st_nlink == 1) {
+        ::unlink(tmp.c_str());
+        raw = ::open(tmp.c_str(), kFlags, 0640);
+      } else {
+        throw std::runtime_error("refusing to save checkpoint " + path + ": " + tmp +
+                                 " already exists and is not a file of ours (a symlink, FIFO or "
+                                 "another user's file planted there?); remove it and check who "
+                                 "can write to the state directory");
+      }
+    }
+    Fd fd(raw);
     if (fd.get() < 0) fail_write(path, "cannot create " + tmp, errno);
     std::size_t done = 0;
     while (done < data.size()) {
@@ -141,16 +160,24 @@ void remove_stale_temporaries(const std::string& path) {
 
 // Reads the whole file; on failure returns false with a reason.
 bool read_file(const std::string& path, std::string& out, std::string& reason) {
-  Fd fd(::open(path.c_str(), O_RDONLY | O_CLOEXEC));
+  // O_NONBLOCK: opening a FIFO planted under the checkpoint's name must not hang start-up;
+  // O_NOFOLLOW: a symlink is not ours to follow. Only a regular file is then read.
+  Fd fd(::open(path.c_str(), O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC));
   if (fd.get() < 0) {
     const int err = errno;
-    reason =
-        err == ENOENT ? "no checkpoint at " + path : "cannot open " + path + ": " + errno_text(err);
+    reason = err == ENOENT  ? "no checkpoint at " + path
+             : err == ELOOP ? "refusing checkpoint " + path + ": it is a symbolic link"
+                            : "cannot open " + path + ": " + errno_text(err);
     return false;
   }
   struct stat st {};
   if (::fstat(fd.get(), &st) != 0 || !S_ISREG(st.st_mode)) {
-    reason = path + " is not a regular file";
+    reason = "refusing checkpoint " + path + ": not a regular file (a FIFO, device or directory)";
+    return false;
+  }
+  if (st.st_uid != ::geteuid() && st.st_uid != 0) {
+    reason = "refusing checkpoint " + path + ": owned by uid " + std::to_string(st.st_uid) +
+             ", not by this daemon's user or root";
     return false;
   }
   char buf[4096];
@@ -266,6 +293,16 @@ std::optional<Checkpoint> parse(const std::string& text, std::string& reason) {
   }
   c.driver = driver->get<std::string>();
   c.wall_time_unix = wall->get<std::int64_t>();
+  for (const auto& [key, field] :
+       {std::pair{"actuator", &c.actuator}, std::pair{"endpoint", &c.endpoint}}) {
+    const auto it = j.find(key);
+    if (it == j.end()) continue;
+    if (!it->is_string()) {
+      reason = std::string("field '") + key + "' is not a string";
+      return std::nullopt;
+    }
+    *field = it->get<std::string>();
+  }
   for (double e : c.eps2_mean) {
     if (e < 0.0) {
       reason = "field 'eps2_mean' holds a negative mean square";
@@ -307,6 +344,8 @@ void save_checkpoint(const std::string& path, const Checkpoint& c) {
       {"t", c.t},
       {"driver", c.driver},
       {"wall_time_unix", c.wall_time_unix},
+      {"actuator", c.actuator},
+      {"endpoint", c.endpoint},
   };
   j["checksum"] = checksum_of(j);
   // Invalid UTF-8 in the driver name is replaced rather than thrown on.

@@ -5,7 +5,10 @@
 // File format (JSON, one object):
 //   {"format":"scp-estimator-state", "version":1, "theta_hat":[6], "info_mech":[16],
 //    "info_thermal":[4], "eps2_mean":[2], "t":s, "driver":"sim", "wall_time_unix":s,
+//    "actuator":"bench-a", "endpoint":"modbus tcp 10.0.0.5:502",
 //    "checksum":"fnv1a64:<16 hex digits>"}
+// "actuator" and "endpoint" (the actuator's identity) are optional on load: files written before
+// they existed read as "" and are judged by the driver alone.
 // The checksum is FNV-1a (64 bit) over the compact JSON dump of every other field (keys sorted),
 // so a torn or hand-edited file is recognised and ignored instead of seeding the estimator with
 // garbage.
@@ -29,6 +32,8 @@ struct Checkpoint {
   double t = 0.0;                        // s, loop time when saved
   std::string driver;                    // driver name the estimate was learned with
   std::int64_t wall_time_unix = 0;       // s since the epoch when saved
+  std::string actuator;                  // actuator.name ("" in files written before it)
+  std::string endpoint;                  // the device the driver talked to ("" likewise)
 };
 
 // Writes atomically: path.tmp.<pid>, fsync, rename over `path`, fsync the directory. Throws

@@ -78,10 +78,14 @@ void CanDriver::open() {
   tx_full_in_a_row_ = 0;
   have_last_sent_ = false;
   last_command_ = 0.0;
-  const IoResult r = send_command(0.0, true);
-  if (r.status == IoStatus::error && link_down_) {
-    throw DriverError(std::string(down_reason_));
-  }
+  // No heartbeat yet: it means "the loop is cycling", and start-up may take longer than the
+  // DAQ's timeout between open() and the first cycle (the DAQ arms at the first heartbeat).
+  heartbeat_due_ = false;
+  next_heartbeat_t_ = 0.0;
+  // An interface that is down (ENETDOWN) is not refused: like a Modbus DAQ absent at start it is
+  // awaited, as it would be if it went down later. read() reports it until frames flow, the loop
+  // holds STARTING at 0 V, and driver.start_timeout_s bounds the wait.
+  (void)send_command(0.0, true);
 }
 
 void CanDriver::handle_error_frame(const canfd_frame& f) noexcept {
@@ -153,6 +157,15 @@ IoResult CanDriver::read(const CycleTime& now, Sample& out) noexcept {
   if (!started_) {
     started_ = true;
     start_t_ = now.t;
+    next_heartbeat_t_ = now.t;
+  }
+  // 1 ns of slack: loop times k·period and the sum of heartbeat periods round differently.
+  if (settings_.heartbeat.enabled && now.t >= next_heartbeat_t_ - 1e-9) {
+    heartbeat_due_ = true;
+    const double period = settings_.heartbeat.period_ms * 1e-3;
+    next_heartbeat_t_ += period;
+    // After a stall the schedule restarts from now instead of sending a burst to catch up.
+    if (next_heartbeat_t_ <= now.t - 1e-9) next_heartbeat_t_ = now.t + period;
   }
   fresh_ = {};
   // Lock-step (read_wait_s > 0): wait, bounded, until every present signal is new this cycle.
@@ -238,8 +251,14 @@ IoResult CanDriver::send_command(double volts, bool force) noexcept {
       std::memcmp(&f, &last_sent_, sizeof f) == 0) {
     return IoResult::ok();
   }
+  // Until the frame is on the bus the device holds what it last received.
+  stats_.output_confirmed = false;
   switch (channel_.send(f, settings_.fd)) {
     case TxStatus::sent:
+      // Sent on the bus (a CAN frame is ACKed by the bus, not by the application): the best
+      // confirmation CAN offers.
+      stats_.output_v = volts;
+      stats_.output_confirmed = true;
       ++stats_.writes;
       tx_full_in_a_row_ = 0;
       last_sent_ = f;
@@ -264,6 +283,24 @@ IoResult CanDriver::send_command(double volts, bool force) noexcept {
   return IoResult::fail("CAN send failed");
 }
 
+void CanDriver::send_heartbeat_if_due() noexcept {
+  if (!heartbeat_due_ || !channel_.valid()) return;
+  heartbeat_due_ = false;
+  const CanHeartbeat& hb = settings_.heartbeat;
+  canfd_frame f{};
+  f.can_id = hb.extended ? (hb.frame_id | CAN_EFF_FLAG) : hb.frame_id;
+  f.len = 1;  // CANopen heartbeat: DLC 1
+  // 0x05: NMT "operational", the state a CANopen consumer expects of a live producer.
+  f.data[0] = hb.payload == HeartbeatPayload::canopen ? std::uint8_t{0x05} : heartbeat_counter_++;
+  // A refused heartbeat is not a fault by itself: the command frame on the same channel reports
+  // a full queue or a link down; a missing heartbeat is the DAQ's to judge.
+  if (channel_.send(f, false) == TxStatus::sent) {
+    ++counters_.heartbeats;
+  } else {
+    ++counters_.heartbeat_failures;
+  }
+}
+
 IoResult CanDriver::write_voltage(double volts) noexcept {
   if (!std::isfinite(volts)) {
     ++stats_.write_errors;
@@ -274,12 +311,19 @@ IoResult CanDriver::write_voltage(double volts) noexcept {
     return IoResult::fail("CAN driver not open");
   }
   last_command_ = volts;
-  return send_command(volts, false);
+  const IoResult r = send_command(volts, false);
+  send_heartbeat_if_due();
+  return r;
 }
 
 void CanDriver::safe_state() noexcept {
   last_command_ = 0.0;
-  if (channel_.valid()) (void)send_command(0.0, true);
+  if (channel_.valid()) {
+    (void)send_command(0.0, true);
+    send_heartbeat_if_due();
+  } else if (stats_.output_v != 0.0) {
+    stats_.output_confirmed = false;  // nothing to send 0 V on
+  }
 }
 
 void CanDriver::close() noexcept {

@@ -36,6 +36,8 @@ struct CanCounters {
   std::uint64_t unexpected_frames = 0;    // ids not in use, RTR, too short for their signals
   std::uint64_t kernel_drops = 0;         // SO_RXQ_OVFL
   std::uint64_t tx_queue_full = 0;        // EAGAIN/ENOBUFS on send
+  std::uint64_t heartbeats = 0;           // heartbeat frames sent
+  std::uint64_t heartbeat_failures = 0;   // heartbeat frames the channel refused
 };
 
 class CanDriver final : public Driver {
@@ -64,6 +66,7 @@ class CanDriver final : public Driver {
   void handle_error_frame(const canfd_frame& f) noexcept;
   void handle_data_frame(const canfd_frame& f, double t) noexcept;
   IoResult send_command(double volts, bool force) noexcept;
+  void send_heartbeat_if_due() noexcept;
 
   CanSettings settings_;
   CanChannel channel_;
@@ -89,6 +92,11 @@ class CanDriver final : public Driver {
   int tx_full_in_a_row_ = 0;
   bool have_last_sent_ = false;
   canfd_frame last_sent_{};
+  // Heartbeat: read() marks it due from the loop time (so only a loop that keeps cycling feeds
+  // the DAQ's watchdog), the write phase sends it after the command frame.
+  bool heartbeat_due_ = false;
+  double next_heartbeat_t_ = 0.0;
+  std::uint8_t heartbeat_counter_ = 0;
   DriverStats stats_;
   CanCounters counters_;
 };

@@ -118,6 +118,37 @@ std::optional<SettingsProblem> validate_can_settings(const CanSettings& s) {
       }
     }
   }
+  if (!(s.heartbeat.period_ms > 0.0) || !(s.heartbeat.period_ms <= 65535.0)) {
+    return SettingsProblem{"heartbeat.period_ms",
+                           "period_ms must lie in (0, 65535] ms (CANopen producer heartbeat "
+                           "time); keep it well below the DAQ's watchdog timeout"};
+  }
+  if (s.heartbeat.enabled) {
+    const CanHeartbeat& hb = s.heartbeat;
+    const std::uint32_t max_id = hb.extended ? 0x1FFFFFFFU : 0x7FFU;
+    if (hb.frame_id > max_id) {
+      return SettingsProblem{"heartbeat.frame_id",
+                             "frame id " + hex_id(hb.frame_id) + " does not fit " +
+                                 (hb.extended ? "29" : "11") + " bits (maximum " + hex_id(max_id) +
+                                 (hb.extended ? ")" : "); CANopen uses 0x700 + node id")};
+    }
+    const auto clash = [&](const CanSignal& sig) {
+      return sig.frame_id == hb.frame_id && sig.extended == hb.extended;
+    };
+    if (clash(s.command.signal)) {
+      return SettingsProblem{"heartbeat.frame_id", "frame id " + hex_id(hb.frame_id) +
+                                                       " is also the command frame id; use "
+                                                       "distinct ids"};
+    }
+    for (int i = 0; i < 4; ++i) {
+      const CanSignal& sig = *signal_at(s, i);
+      if (sig.present && clash(sig)) {
+        return SettingsProblem{"heartbeat.frame_id", "frame id " + hex_id(hb.frame_id) +
+                                                         " is also the frame of signal " +
+                                                         kSignalNames[i] + "; use distinct ids"};
+      }
+    }
+  }
   if (s.tx_full_fault_after < 1) {
     return SettingsProblem{"tx_full_fault_after", "tx_full_fault_after must be ≥ 1"};
   }

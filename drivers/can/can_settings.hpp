@@ -28,6 +28,22 @@ struct CanSignal {
 };
 
 // The frame the driver sends to command the actuator voltage (V).
+// A heartbeat frame for the DAQ's communication watchdog: the only protection when the daemon or
+// the bus link is dead (docs/driver-can.md). It follows the CANopen heartbeat producer (CiA 301:
+// COB-ID 0x700 + node id, one data byte, period = "producer heartbeat time" 0x1017 in ms), so a
+// DAQ configured as heartbeat consumer (0x1016) of that id drops its outputs when it stops.
+enum class HeartbeatPayload : std::uint8_t {
+  counter,  // one byte counting 0..255 and wrapping: an alive counter firmware can check
+  canopen,  // one byte, NMT state 0x05 (operational), what a CANopen heartbeat consumer expects
+};
+struct CanHeartbeat {
+  bool enabled = false;
+  std::uint32_t frame_id = 0x77F;  // CANopen: 0x700 + the daemon's node id (127 here)
+  bool extended = false;
+  double period_ms = 100.0;  // ≤ 65535 (0x1017 is 16 bits); the DAQ's timeout must be longer
+  HeartbeatPayload payload = HeartbeatPayload::counter;
+};
+
 struct CanCommand {
   CanSignal signal;             // layout of the voltage in the command frame (present is ignored)
   bool send_each_cycle = true;  // false: send only when the encoded value changes
@@ -41,6 +57,7 @@ struct CanSettings {
   CanSignal temperature;  // °C absolute, required
   CanSignal voltage;      // V read back, optional (absent: the last command is reported)
   CanCommand command;
+  CanHeartbeat heartbeat;
   int tx_full_fault_after = 10;    // consecutive "transmit queue full" writes before a fault
   int max_frames_per_cycle = 256;  // bound on the per-cycle drain so a flooded bus cannot stall
   // > 0: read() waits up to this long for a new value of every sensor signal (lock-step offline

@@ -71,15 +71,44 @@ bool CanSimNode::send_raw(const canfd_frame& f, bool is_fd) noexcept {
   return channel_.send(f, is_fd) == TxStatus::sent;
 }
 
+void CanSimNode::check_watchdog(double wall, long long step) noexcept {
+  // Armed by the first feed, as a CANopen consumer starts monitoring at the first heartbeat.
+  if (!(watchdog_timeout_s_ > 0.0) || !watchdog_armed_ || watchdog_tripped_) return;
+  if (wall - watchdog_fed_ <= watchdog_timeout_s_) return;
+  watchdog_tripped_ = true;
+  ++counters_.watchdog_trips;
+  voltage_ = 0.0;
+  if (log_ != nullptr) std::fprintf(log_, "%lld,%.6f,0,watchdog\n", step, wall);
+}
+
 void CanSimNode::step(double t, double period) noexcept {
   const CanSignal& cmd = can_.command.signal;
+  const CanHeartbeat& hb = can_.heartbeat;
+  const canid_t hb_id = hb.extended ? (hb.frame_id | CAN_EFF_FLAG) : hb.frame_id;
+  const long long step_k = std::llround(t / period);
   for (int n = 0; n < can_.max_frames_per_cycle; ++n) {
     canfd_frame f{};
     bool is_fd = false;
     const RxStatus rx = channel_.receive(f, is_fd);
     if (rx == RxStatus::empty || rx == RxStatus::down || rx == RxStatus::error) break;
+    if (rx == RxStatus::frame && hb.enabled && f.can_id == hb_id) {
+      ++counters_.heartbeats;
+      watchdog_fed_ = monotonic_s() - wall0_;
+      watchdog_armed_ = true;
+      watchdog_tripped_ = false;  // fed again: armed again, commands accepted
+      continue;
+    }
     if (rx != RxStatus::frame || f.can_id != wire_id(cmd) || !signal_fits(cmd, f.len)) {
       ++counters_.ignored;
+      continue;
+    }
+    if (!hb.enabled) {
+      watchdog_fed_ = monotonic_s() - wall0_;
+      watchdog_armed_ = true;
+      watchdog_tripped_ = false;
+    }
+    if (watchdog_tripped_) {
+      ++counters_.ignored_while_tripped;
       continue;
     }
     const double v = decode_signal(cmd, f.data, f.len);
@@ -87,10 +116,11 @@ void CanSimNode::step(double t, double period) noexcept {
       voltage_ = v;  // the latest command wins, as on a DAC register
       ++counters_.commands;
       if (log_ != nullptr) {
-        std::fprintf(log_, "%lld,%.6f,%.9g\n", std::llround(t / period), monotonic_s() - wall0_, v);
+        std::fprintf(log_, "%lld,%.6f,%.9g\n", step_k, monotonic_s() - wall0_, v);
       }
     }
   }
+  check_watchdog(monotonic_s() - wall0_, step_k);
   (void)sim_.write_voltage(voltage_);
   Sample s;
   const IoResult r = sim_.read(CycleTime{t, period}, s);
@@ -139,10 +169,14 @@ int run_can_sim_node(const CanSettings& can, const sim::SimSettings& sim, const 
     if (fd >= 0) {
       channel = CanChannel(fd);
     } else {
-      const canid_t ids[1] = {wire_id(can.command.signal)};
-      channel = open_socketcan(can.interface, ids, can.fd);
+      const CanHeartbeat& hb = can.heartbeat;
+      const canid_t ids[2] = {wire_id(can.command.signal),
+                              hb.extended ? (hb.frame_id | CAN_EFF_FLAG) : hb.frame_id};
+      channel =
+          open_socketcan(can.interface, std::span<const canid_t>(ids, hb.enabled ? 2 : 1), can.fd);
     }
     CanSimNode node(can, sim, std::move(channel));
+    node.set_watchdog(o.watchdog_timeout_s);
     std::FILE* log = nullptr;
     if (!o.command_log.empty()) {
       log = std::fopen(o.command_log.c_str(), "w");
@@ -182,10 +216,12 @@ int run_can_sim_node(const CanSettings& can, const sim::SimSettings& sim, const 
       const auto& c = node.counters();
       std::printf(
           "scp-simdaq: CAN node stopped after %.3f s: %llu commands, %llu frames sent, "
-          "%llu send failures\n",
+          "%llu send failures, %llu heartbeats, %llu watchdog trips\n",
           monotonic_s() - wall0, static_cast<unsigned long long>(c.commands),
           static_cast<unsigned long long>(c.frames_sent),
-          static_cast<unsigned long long>(c.send_failures));
+          static_cast<unsigned long long>(c.send_failures),
+          static_cast<unsigned long long>(c.heartbeats),
+          static_cast<unsigned long long>(c.watchdog_trips));
       std::fflush(stdout);
       return 0;
     };
@@ -199,7 +235,10 @@ int run_can_sim_node(const CanSettings& can, const sim::SimSettings& sim, const 
         if (o.duration_s > 0 && w >= o.duration_s) break;
         pollfd p{node.fd(), POLLIN, 0};
         const int ready = poll(&p, 1, 100);
-        if (ready <= 0) continue;
+        if (ready <= 0) {
+          node.check_watchdog(monotonic_s() - wall0, k);  // a dead daemon sends nothing to wait on
+          continue;
+        }
         if (p.revents & (POLLHUP | POLLERR)) break;  // the daemon closed its end
         inject(w);
         node.step(static_cast<double>(k++) * period_s, period_s);

@@ -23,6 +23,9 @@ struct CanSimNodeCounters {
   std::uint64_t send_failures = 0;  // the daemon is not reading: frames lost
   std::uint64_t ignored = 0;        // frames that were not the command
   std::uint64_t sim_errors = 0;     // read errors injected by the simulation's fault settings
+  std::uint64_t heartbeats = 0;     // heartbeat frames received
+  std::uint64_t watchdog_trips = 0;
+  std::uint64_t ignored_while_tripped = 0;  // commands refused until the heartbeat returns
 };
 
 class CanSimNode {
@@ -42,6 +45,16 @@ class CanSimNode {
   // Every decoded command frame is logged as "step,wall_s,volts" (step = round(t / period) of
   // the step that applies it; wall_s since the node was made). nullptr: no log.
   void set_command_log(std::FILE* log) noexcept { log_ = log; }
+
+  // The node's communication watchdog (timeout_s > 0): when nothing feeds it for timeout_s of
+  // wall time the output falls to 0 V (logged "step,wall_s,0,watchdog"), and commands are refused
+  // until it is fed again, like a CANopen heartbeat consumer whose error behaviour leaves
+  // "operational". Fed by the heartbeat frame of can.heartbeat when enabled, else by any
+  // command frame.
+  void set_watchdog(double timeout_s) noexcept { watchdog_timeout_s_ = timeout_s; }
+  // Trips the watchdog if it is due at wall time `wall` (s since the node was made); step()
+  // calls it, lock-step waits call it between frames.
+  void check_watchdog(double wall, long long step) noexcept;
 
   int fd() const noexcept { return channel_.fd(); }
   double voltage() const noexcept { return voltage_; }
@@ -63,6 +76,10 @@ class CanSimNode {
   bool silent_ = false;
   std::FILE* log_ = nullptr;
   double wall0_ = 0.0;
+  double watchdog_timeout_s_ = 0.0;
+  double watchdog_fed_ = 0.0;  // wall s since wall0_
+  bool watchdog_armed_ = false;
+  bool watchdog_tripped_ = false;
   CanSimNodeCounters counters_;
 };
 
@@ -81,7 +98,8 @@ struct CanNodeOptions {
   double fault_after_s = -1.0;  // wall seconds; < 0: no fault
   double fault_duration_s = -1.0;
   CanNodeFault fault = CanNodeFault::silent;
-  double duration_s = 0.0;  // > 0: stop after this long
+  double duration_s = 0.0;          // > 0: stop after this long
+  double watchdog_timeout_s = 0.0;  // > 0: the node's communication watchdog (set_watchdog)
 };
 
 // Serves the node in real time until `stop` becomes true: one step per period_s on absolute

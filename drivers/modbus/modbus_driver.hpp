@@ -11,6 +11,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
+#include <limits>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -19,6 +20,8 @@
 #include "drivers/driver.hpp"
 #include "drivers/modbus/modbus_settings.hpp"
 #include "drivers/modbus/read_plan.hpp"
+#include "drivers/modbus/stamp_gate.hpp"
+#include "drivers/modbus/tcp_transaction.hpp"
 
 struct _modbus;  // libmodbus' modbus_t, kept out of this header
 
@@ -32,7 +35,11 @@ class ModbusDriver final : public Driver {
 
   std::string_view name() const noexcept override { return "modbus"; }
   // Checks timing, connects, writes 0 V and starts the reconnect thread. Throws DriverError
-  // naming the remedy (unreachable host, serial permission, exception reply to the command...).
+  // naming the remedy for what waiting cannot fix (impossible timing, serial permission, an
+  // exception reply to the 0 V command). A DAQ that does not answer yet (unreachable, refusing,
+  // silent) is treated like a link lost later: open() returns with the link down and the
+  // reconnect thread keeps trying with back-off; reads report why until it answers. In an
+  // offline run (enforce_period_budget false) it throws instead.
   void open() override;
   // One transaction per read block. A failed transaction returns no_data (with a reason) while at
   // most max_consecutive_failures reads in a row have failed, then IoStatus::error. NaN, inf and
@@ -44,26 +51,58 @@ class ModbusDriver final : public Driver {
   IoResult write_voltage(double volts) noexcept override;
   void safe_state() noexcept override;
   void close() noexcept override;
-  DriverStats stats() const noexcept override { return stats_; }
+  DriverStats stats() const noexcept override;
 
   const ReadPlan& plan() const noexcept { return plan_; }
   double last_command() const noexcept { return last_command_; }
+  // Non-real-time: why the reconnect thread's last attempt failed ("" after a success).
+  std::string background_error() const override;
 
  private:
-  // Reasons for one transaction, built once at open() so read/write hand out stable strings.
-  enum Reason : std::size_t { kOther = 0, kTimeout = 12, kLinkLost = 13, kReasonCount = 14 };
-  using Reasons = std::array<std::string, kReasonCount>;
+  // Reasons for one transaction, built once at open() so read/write hand out stable strings:
+  // [0] unclassified, [1..11] exception codes, then the named causes below. `dropped` holds the
+  // same texts for a failure that cost the link.
+  enum Reason : std::size_t {
+    kOther = 0,
+    kTimeout = 12,
+    kLinkLost = 13,
+    kCrc = 14,
+    kBadData = 15,
+    kBadSlave = 16,
+    kReasonCount = 17
+  };
+  struct Reasons {
+    std::array<std::string, kReasonCount> why;
+    std::array<std::string, kReasonCount> dropped;
+  };
+  static Reasons make_reasons(const std::string& what, int max_failures);
+  static std::size_t reason_index(int err) noexcept;
 
   _modbus* make_context(std::string& error) const;
-  bool probe(_modbus* ctx);
-  void reconnect_main();
+  // One transaction on `ctx` (any thread; touches no loop state). 0 or an errno-style code.
+  int read_block(_modbus* ctx, TcpTransaction& tcp, const ReadBlock& block,
+                 std::uint16_t* registers) const noexcept;
+  int write_registers(_modbus* ctx, TcpTransaction& tcp,
+                      const std::uint16_t* registers) const noexcept;
+  int write_zero(_modbus* ctx, TcpTransaction& tcp) const noexcept;
+  void reconnect_main(std::uint64_t attempts_so_far);
   void adopt_fresh_link() noexcept;
+  // A failure that makes the link untrustworthy: the next write-type call tries 0 V on it, then
+  // hands it to the reconnect thread (drop_link).
+  void doom_link(const char* reason) noexcept;
   void drop_link() noexcept;
-  // Classifies errno after a failed transaction and returns the reason to report.
+  // Classifies a failed transaction, updates the streaks and returns the reason to report.
   const char* transaction_failed(const Reasons& reasons, int err) noexcept;
   IoResult tolerate(int& streak, const char* reason) noexcept;
   bool write_command(double volts, int& err) noexcept;
+  // Every watchdog_every-th call (one per cycle, from write_voltage or safe_state) toggles the
+  // heartbeat register.
+  void feed_watchdog() noexcept;
+  // Loop time of a CLOCK_MONOTONIC instant, on the clock of the last read's CycleTime.
+  double loop_time(std::int64_t monotonic_ns) const noexcept;
+  bool stamping() const noexcept { return settings_.timing.stamp && deadline_ns_ != 0; }
   std::string endpoint() const;
+  int write_function() const noexcept;
 
   ModbusSettings settings_;
   double period_s_;
@@ -71,24 +110,63 @@ class ModbusDriver final : public Driver {
   std::vector<std::array<std::uint16_t, kMaxRegistersPerRead>> buffers_;
   std::vector<Reasons> read_reasons_;  // one per read block
   Reasons write_reasons_;
+  Reasons heartbeat_reasons_;
+  int heartbeat_cycle_ = 0;
+  std::uint16_t heartbeat_value_ = 0;
+  std::string start_reason_;  // link never up yet
 
   // Loop thread only.
   _modbus* ctx_ = nullptr;
+  TcpTransaction tcp_;
+  bool doomed_ = false;           // ctx_ failed in a way that costs the link (see doom_link)
+  const char* down_reason_ = "";  // why there is no link, for the fault reason
   int read_streak_ = 0;
   int write_streak_ = 0;
   int timeout_streak_ = 0;
   bool need_fresh_reading_ = false;
   double last_command_ = 0.0;
+  // Time stamps (settings_.timing): the last read's deadline on both clocks, the wire model's
+  // offsets and when last_command_ took effect (loop time; −∞ while unknown).
+  std::int64_t deadline_ns_ = 0;
+  double deadline_t_ = 0.0;
+  std::size_t x_block_ = 0;
+  double read_event_s_ = 0.0;   // sample instant − read midpoint, input latency included
+  double write_event_s_ = 0.0;  // command effect − write midpoint, output latency included
+  double voltage_since_ = -std::numeric_limits<double>::infinity();
+  // RTU: when the last transaction's reply was complete. A request sent sooner than 3.5
+  // characters after it waits on the line (libmodbus does not wait), so the slave sees it start
+  // then, not when the driver sent it.
+  std::int64_t line_free_ns_ = 0;
+  std::int64_t gap_ns_ = 0;
+  // The stamp of a transaction that began at begin_ns and ends now: its midpoint (from when the
+  // line saw it begin to when its reply was received), or the gate's estimate when the
+  // transaction took far longer than usual (counted in stats_.stretched_stamps), for reads and
+  // writes alike. (Writes used to keep their midpoint: measured against scp-simdaq's event
+  // times, a write's stretch came as often before the device acted as after. That was the loop
+  // thread's own wake-up after the reply and the emulator's after the request; with both taken
+  // from the kernel's receive stamps, what stretches is the reply, after the device acted:
+  // measured under stress -c 2 -i 1, stretched writes off by 0.3 ms median, 3.3 ms worst, with
+  // their midpoints.)
+  std::int64_t transaction_stamp(std::int64_t begin_ns, StampGate& gate) noexcept;
+  void mark_line_busy(std::int64_t end_ns) noexcept;
+  // When the line saw a request sent at begin_ns start: not before the previous frame's gap.
+  std::int64_t line_begin_ns(std::int64_t begin_ns, std::int64_t end_ns) const noexcept;
+  // The end of the transaction that began at begin_ns: over TCP when the kernel received its
+  // reply (TcpTransaction::reply_received_ns), otherwise now.
+  std::int64_t transaction_end_ns(std::int64_t begin_ns) const noexcept;
+  StampGate read_gate_;
+  StampGate write_gate_;
   DriverStats stats_;
   bool opened_ = false;
 
   // Hand-over between the loop thread and the reconnect thread.
-  std::atomic<_modbus*> fresh_{nullptr};    // connected and probed, for the loop to adopt
+  std::atomic<_modbus*> fresh_{nullptr};    // connected, 0 V written and probed, for the loop
   std::atomic<_modbus*> retired_{nullptr};  // dropped by the loop, for the thread to free
   std::atomic<bool> link_wanted_{false};
   std::atomic<bool> stop_{false};
-  std::mutex sleep_mutex_;  // reconnect thread and close() only
+  mutable std::mutex sleep_mutex_;  // reconnect thread and non-real-time callers only
   std::condition_variable sleep_cv_;
+  std::string connect_error_;  // guarded by sleep_mutex_
   std::thread reconnector_;
 };
 

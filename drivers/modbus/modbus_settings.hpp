@@ -36,6 +36,19 @@ struct CommandRegister {
   double offset = 0.0;
   double min_volts = 0.0;  // the DAQ output's range; 0 V must lie inside (safe state)
   double max_volts = 10.0;
+  // Modbus function used for the write: 0 = 6 for one register and 16 for two; 16 for a
+  // one-register command on devices that accept only "write multiple registers".
+  int function = 0;
+};
+
+// How samples and commands are placed in time on a real-time run (docs/driver-modbus.md, "Time").
+struct LinkTiming {
+  // true: Sample::t is when the DAQ sampled (the read transaction's time stamp, wire_time.hpp)
+  // and Sample::voltage_since when the last command landed; false: the cycle's deadline and −∞,
+  // as if the link took no time (offline and lock-step runs behave so anyway).
+  bool stamp = true;
+  double input_latency_s = 0.0;   // the DAQ's sample is this much older than the wire model says
+  double output_latency_s = 0.0;  // its output changes this much later than the wire model says
 };
 
 struct ModbusSettings {
@@ -60,12 +73,19 @@ struct ModbusSettings {
   double reconnect_initial_s = 0.1;   // back-off of the reconnect thread, doubled per attempt
   double reconnect_max_s = 5.0;
   int max_read_gap = 8;  // registers read and discarded to merge two signals into one request
+  // Feeding the DAQ's communication watchdog (docs/driver-modbus.md): every watchdog_every
+  // cycles the driver writes 0/1 alternately (function 6) to holding register watchdog_register
+  // (-1 = off). When the daemon dies or the link is dead the writes stop and a DAQ configured
+  // with a communication timeout sets its output to the safe value by itself.
+  int watchdog_register = -1;
+  int watchdog_every = 10;
 
   RegisterSignal x{true, Table::input, 0, RegisterType::float32, WordOrder::ab, 1.0, 0.0};
   RegisterSignal xdot{false, Table::input, 4, RegisterType::float32, WordOrder::ab, 1.0, 0.0};
   RegisterSignal temperature{true, Table::input, 2, RegisterType::float32, WordOrder::ab, 1.0, 0.0};
   RegisterSignal voltage{false, Table::input, 6, RegisterType::float32, WordOrder::ab, 1.0, 0.0};
   CommandRegister command;
+  LinkTiming timing;
 };
 
 }  // namespace scp::drivers::modbus

@@ -9,7 +9,9 @@
 namespace scp::drivers::modbus {
 
 int transactions_per_cycle(const ModbusSettings& settings) {
-  return static_cast<int>(plan_reads(settings, settings.max_read_gap).blocks.size()) + 1;
+  // + the command write, + the watchdog heartbeat in the cycles that carry one.
+  return static_cast<int>(plan_reads(settings, settings.max_read_gap).blocks.size()) + 1 +
+         (settings.watchdog_register >= 0 ? 1 : 0);
 }
 
 void check_timing(const ModbusSettings& settings, double period_s) {

@@ -1,5 +1,7 @@
 #include "drivers/replay/csv_trace.hpp"
 
+#include <zlib.h>
+
 #include <algorithm>
 #include <array>
 #include <cerrno>
@@ -7,7 +9,9 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string_view>
 
 namespace scp::drivers::replay {
@@ -63,18 +67,136 @@ bool is_skipped(std::string_view line) {
   return line.empty() || line.front() == '#';
 }
 
+// The period (median step: robust to the gaps of missed periods), the gaps and the longest step.
+void finish(Trace& trace) {
+  std::vector<double> steps(trace.rows.size() - 1);
+  for (std::size_t i = 1; i < trace.rows.size(); ++i) {
+    steps[i - 1] = trace.rows[i].t - trace.rows[i - 1].t;
+  }
+  std::vector<double> sorted = steps;
+  const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
+  std::nth_element(sorted.begin(), mid, sorted.end());
+  trace.period = *mid;
+  trace.gaps = 0;
+  trace.max_step = 0.0;
+  for (const double step : steps) {
+    if (step > 1.5 * trace.period) ++trace.gaps;
+    trace.max_step = std::max(trace.max_step, step);
+  }
+}
+
+bool ends_with(const std::string& s, std::string_view tail) {
+  return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
+}
+
+// The .csv and .csv.gz files of a directory in name order (the daemon's names sort in time
+// order). A.csv and A.csv.gz are one recording (both exist while A is being compressed, or after
+// a crash in between): the plain file is taken.
+std::vector<std::string> csv_files_in(const std::string& directory) {
+  std::vector<std::string> out;
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(directory, ec)) {
+    const std::string path = entry.path().string();
+    if (!entry.is_regular_file()) continue;
+    if (ends_with(path, ".csv")) out.push_back(path);
+    if (ends_with(path, ".csv.gz") && !std::filesystem::exists(path.substr(0, path.size() - 3), ec))
+      out.push_back(path);
+  }
+  if (ec) {
+    throw TraceError(directory + ": cannot list the directory (" + ec.message() +
+                     "); check the path and permissions");
+  }
+  if (out.empty()) throw TraceError(directory + ": no .csv or .csv.gz files in this directory");
+  // By the plain name, so that A.csv.gz sorts as A.csv would.
+  auto stem = [](const std::string& p) {
+    return ends_with(p, ".gz") ? std::string_view(p).substr(0, p.size() - 3) : std::string_view(p);
+  };
+  std::sort(out.begin(), out.end(),
+            [&](const std::string& a, const std::string& b) { return stem(a) < stem(b); });
+  return out;
+}
+
+// The whole text of a gzip file. zlib checks the CRC-32 and length at the end, so a corrupt or
+// truncated file fails here, before a single row is used.
+std::string read_gzip(const std::string& path) {
+  gzFile file = gzopen(path.c_str(), "rb");
+  if (file == nullptr) {
+    throw TraceError(path + ": cannot open trace file (" + std::strerror(errno) +
+                     "); check the path and read permission");
+  }
+  gzbuffer(file, 256 * 1024);
+  std::string text;
+  std::vector<char> chunk(256 * 1024);
+  std::string error;
+  for (;;) {
+    const int n = gzread(file, chunk.data(), static_cast<unsigned>(chunk.size()));
+    if (n > 0) text.append(chunk.data(), static_cast<std::size_t>(n));
+    int code = Z_OK;
+    const char* message = gzerror(file, &code);
+    if (code != Z_OK && code != Z_STREAM_END) {
+      error = message != nullptr ? message : "unknown zlib error";
+      break;
+    }
+    if (n <= 0) break;
+  }
+  const bool direct = gzdirect(file) != 0;
+  gzclose(file);
+  if (direct) {
+    throw TraceError(path +
+                     ": not gzip data, though the name ends in .gz; rename it to .csv if it is a "
+                     "plain CSV");
+  }
+  if (!error.empty()) {
+    const auto lines = static_cast<std::size_t>(std::count(text.begin(), text.end(), '\n'));
+    throw TraceError(path + ": corrupt or truncated gzip data after line " + std::to_string(lines) +
+                     " (zlib: " + error + "); no row of this file was used. `zcat " + path +
+                     " > part.csv` keeps the readable rows, which replay on their own");
+  }
+  return text;
+}
+
 }  // namespace
 
-Trace load_trace(const std::string& path) {
+namespace {
+
+// The rows of one file, without the minimum count: one file of a rotated recording may hold a
+// single row (the daemon stopped just after a rotation).
+Trace parse_rows(std::istream& in, const std::string& path, std::size_t& header_line_out);
+
+Trace load_rows(const std::string& path, std::size_t& header_line) {
+  if (ends_with(path, ".gz")) {
+    std::istringstream text(read_gzip(path));
+    return parse_rows(text, path, header_line);
+  }
   std::ifstream in(path);
   if (!in) {
     throw TraceError(path + ": cannot open trace file (" + std::strerror(errno) +
                      "); check the path and read permission");
   }
-  return parse_trace(in, path);
+  return parse_rows(in, path, header_line);
 }
 
+void require_two_rows(const Trace& trace, const std::string& path, std::size_t header_line) {
+  if (trace.rows.size() < 2) {
+    throw TraceError(path + ": only " + std::to_string(trace.rows.size()) +
+                     " data row(s) after the header (line " + std::to_string(header_line) +
+                     "); at least 2 are needed to know the sample period");
+  }
+}
+
+}  // namespace
+
 Trace parse_trace(std::istream& in, const std::string& path) {
+  std::size_t header_line = 0;
+  Trace trace = parse_rows(in, path, header_line);
+  require_two_rows(trace, path, header_line);
+  finish(trace);
+  return trace;
+}
+
+namespace {
+
+Trace parse_rows(std::istream& in, const std::string& path, std::size_t& header_line_out) {
   std::string raw;
   std::size_t line_no = 0;
   std::vector<std::string_view> fields;
@@ -166,32 +288,59 @@ Trace parse_trace(std::istream& in, const std::string& path) {
     trace.rows.push_back(s);
     row_lines.push_back(line_no);
   }
+  header_line_out = header_line;
+  return trace;
+}
 
-  if (trace.rows.size() < 2) {
-    throw TraceError(path + ": only " + std::to_string(trace.rows.size()) +
-                     " data row(s) after the header (line " + std::to_string(header_line) +
-                     "); at least 2 are needed to know the sample period");
-  }
+}  // namespace
 
-  std::vector<double> steps(trace.rows.size() - 1);
-  for (std::size_t i = 1; i < trace.rows.size(); ++i) {
-    steps[i - 1] = trace.rows[i].t - trace.rows[i - 1].t;
-  }
-  std::vector<double> sorted = steps;
-  const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
-  std::nth_element(sorted.begin(), mid, sorted.end());
-  const double median = *mid;
-  for (std::size_t i = 0; i < steps.size(); ++i) {
-    if (std::abs(steps[i] - median) > kPeriodTolerance * median) {
-      fail(path, row_lines[i + 1],
-           column_ref("t", index[kT]) + ": step " + num(steps[i]) + " s from line " +
-               std::to_string(row_lines[i]) + " differs from the median step " + num(median) +
-               " s by more than 1e-6 relative; the trace must be sampled uniformly (rows "
-               "missing or duplicated? t written with too few digits?)");
+Trace load_trace(const std::string& path) {
+  std::size_t header_line = 0;
+  Trace trace = load_rows(path, header_line);
+  require_two_rows(trace, path, header_line);
+  finish(trace);
+  trace.files = {path};
+  return trace;
+}
+
+Trace load_traces(const std::vector<std::string>& paths) {
+  std::vector<std::string> files;
+  for (const auto& path : paths) {
+    if (std::filesystem::is_directory(path)) {
+      for (auto& f : csv_files_in(path)) files.push_back(std::move(f));
+    } else {
+      files.push_back(path);
     }
   }
-  trace.period = median;
-  return trace;
+  if (files.empty()) throw TraceError("no trace file given");
+  if (files.size() == 1) return load_trace(files.front());
+  Trace all;
+  std::string last_with_rows;
+  for (const auto& file : files) {
+    std::size_t header_line = 0;
+    Trace part = load_rows(file, header_line);
+    if (part.rows.empty()) {
+      all.files.push_back(file);  // a header only: the daemon stopped right after a rotation
+      continue;
+    }
+    if (!all.rows.empty() && !(part.rows.front().t > all.rows.back().t)) {
+      throw TraceError(file + ": the first row's time " + num(part.rows.front().t) +
+                       " is not after the last time " + num(all.rows.back().t) + " of " +
+                       last_with_rows +
+                       "; give the files in time order (a rotated recording's names sort so), "
+                       "each file of one run once");
+    }
+    all.rows.insert(all.rows.end(), part.rows.begin(), part.rows.end());
+    all.files.push_back(file);
+    last_with_rows = file;
+  }
+  if (all.rows.size() < 2) {
+    throw TraceError(
+        files.front() + " .. " + files.back() + ": only " + std::to_string(all.rows.size()) +
+        " data row(s) in these files; at least 2 are needed to know the sample period");
+  }
+  finish(all);
+  return all;
 }
 
 }  // namespace scp::drivers::replay

@@ -7,9 +7,9 @@ namespace scp::drivers::replay {
 
 namespace {
 
-Trace load_or_throw(const std::string& path) {
+Trace load_or_throw(const std::vector<std::string>& paths) {
   try {
-    return load_trace(path);
+    return load_traces(paths);
   } catch (const TraceError& e) {
     throw DriverError(e.what());
   }
@@ -27,7 +27,11 @@ ReplayDriver::ReplayDriver(Trace trace) : trace_(std::move(trace)) {
   }
 }
 
-ReplayDriver::ReplayDriver(const std::string& path) : ReplayDriver(load_or_throw(path)) {}
+ReplayDriver::ReplayDriver(const std::string& path)
+    : ReplayDriver(load_or_throw(std::vector<std::string>{path})) {}
+
+ReplayDriver::ReplayDriver(const std::vector<std::string>& paths)
+    : ReplayDriver(load_or_throw(paths)) {}
 
 void ReplayDriver::open() {
   next_ = 0;
@@ -37,7 +41,6 @@ IoResult ReplayDriver::read(const CycleTime& /*now*/, Sample& out) noexcept {
   if (next_ >= trace_.rows.size()) return {IoStatus::end_of_data, "replay: end of trace"};
   ++stats_.reads;
   out = trace_.rows[next_];
-  out.t = trace_.rows[next_].t - trace_.rows[0].t;
   ++next_;
   return IoResult::ok();
 }

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "drivers/driver.hpp"
 #include "drivers/replay/csv_trace.hpp"
@@ -18,11 +19,14 @@ class ReplayDriver final : public Driver {
   explicit ReplayDriver(Trace trace);
   // Loads the CSV; a TraceError is rethrown as DriverError with the same message.
   explicit ReplayDriver(const std::string& path);
+  // Files and directories in order (load_traces()): a rotated recording.
+  explicit ReplayDriver(const std::vector<std::string>& paths);
 
   std::string_view name() const noexcept override { return "replay"; }
   // Rewinds to the first row.
   void open() override;
-  // The next row, its t re-based so that row 0 is at t = 0 (the file's differences are kept);
+  // The next row, its t as recorded (the live estimator was fed that t: re-basing it would change
+  // the steps' rounding and the replay would no longer reproduce the run bit for bit);
   // IoStatus::end_of_data after the last row. `now` is not used: the file sets the pace.
   IoResult read(const CycleTime& now, Sample& out) noexcept override;
   // A recording cannot be actuated: commands are only counted.
@@ -34,6 +38,12 @@ class ReplayDriver final : public Driver {
   double period() const noexcept { return trace_.period; }
   std::size_t size() const noexcept { return trace_.rows.size(); }
   std::size_t position() const noexcept { return next_; }  // rows already returned
+  // The time of the row the next read() returns (the batch runner's cycle time); false at the end.
+  bool next_time(double& t) const noexcept {
+    if (next_ >= trace_.rows.size()) return false;
+    t = trace_.rows[next_].t;
+    return true;
+  }
   std::uint64_t safe_states() const noexcept { return safe_states_; }
   const Trace& trace() const noexcept { return trace_; }
 

@@ -178,14 +178,17 @@ IoResult SimDriver::write_voltage(double volts) noexcept {
   if (!std::isfinite(volts)) {
     ++stats_.write_errors;
     command_ = 0.0;
+    stats_.output_v = 0.0;
     return IoResult::fail("sim: non-finite voltage command refused, holding 0 V");
   }
   command_ = volts;
+  stats_.output_v = volts;
   return IoResult::ok();
 }
 
 void SimDriver::safe_state() noexcept {
   command_ = 0.0;
+  stats_.output_v = 0.0;
 }
 
 void SimDriver::close() noexcept {

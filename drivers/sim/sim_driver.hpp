@@ -3,6 +3,7 @@
 // (CycleTime::t), so batch runs and real-time runs see the same physics.
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <random>
 #include <string_view>
@@ -41,6 +42,11 @@ class SimDriver final : public Driver {
   // Advances the plant from its current time to now.t with the voltage last written held, then
   // samples it. A non-finite now.t fails; a now.t at or before the plant's time does not advance.
   IoResult read(const CycleTime& now, Sample& out) noexcept override;
+  // Advances the physics alone to loop time t (no sample, no noise drawn): a wall-clock peer
+  // (scp-simdaq --wallclock) brings the plant to the instant a new command lands.
+  void advance_to(double t) noexcept {
+    if (std::isfinite(t) && t > plant_.time()) plant_.step(command_, t - plant_.time());
+  }
   // Stores the command for the next interval; a non-finite value is refused and 0 V held.
   IoResult write_voltage(double volts) noexcept override;
   void safe_state() noexcept override;

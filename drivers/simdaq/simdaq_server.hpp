@@ -28,7 +28,25 @@ struct SimDaqOptions {
   // instead of with the wall clock, so an offline daemon runs the experiment as fast as the
   // transport allows (docs/simdaq.md).
   bool lockstep = false;
+  // Wall-clock plant: integrated in continuous CLOCK_MONOTONIC time, sampled at the instant a
+  // read request arrives and switched to a new command at the instant its write arrives (instead
+  // of stepped on a period grid of its own). With `wire`, those instants and the replies are
+  // those of an RTU line at map.baud/parity/stop bits (emulated_wire.hpp), whatever the transport.
+  bool wallclock = false;
+  bool wire = false;
+  double wire_jitter_s = 0.0;  // each frame delayed by uniform [0, this] more
+  double wire_gap_s = -1.0;    // inter-frame silence; < 0: 3.5 characters
+  std::uint64_t wire_seed = 1;
   std::string command_log;  // non-empty: one line "step,wall_s,volts" per command received
+  // Field faults of a real link: every late_every-th request (> 0) is answered late_factor ×
+  // driver.modbus.response_timeout late, after the client has given up on it.
+  int late_every = 0;
+  double late_factor = 1.5;
+  bool exception_reads_only = false;  // --exception-after answers reads only; writes work
+  // A DAQ's communication watchdog (> 0): when it is not fed for this long the output falls to
+  // 0 V. Fed by every write to holding register watchdog_register (≥ 0), or by any request.
+  double watchdog_timeout_s = 0.0;
+  int watchdog_register = -1;
 };
 
 // Whether a fault window that starts at `after` (< 0: never) and lasts `duration` (≤ 0: for

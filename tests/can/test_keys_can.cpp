@@ -87,14 +87,55 @@ TEST(KeysCan, SignalOutsideFrameAndIdRange) {
   EXPECT_NE(e.find("unknown key"), std::string::npos) << e;
 }
 
+TEST(KeysCan, HeartbeatIsReadAndOffByDefault) {
+  EXPECT_FALSE(load("can: {}\n").heartbeat.enabled);
+  const CanSettings s = load(
+      "can:\n"
+      "  heartbeat: {enabled: true, frame_id: 0x701, period_ms: 50, payload: canopen}\n");
+  EXPECT_TRUE(s.heartbeat.enabled);
+  EXPECT_EQ(s.heartbeat.frame_id, 0x701U);
+  EXPECT_DOUBLE_EQ(s.heartbeat.period_ms, 50.0);
+  EXPECT_EQ(s.heartbeat.payload, drivers::can::HeartbeatPayload::canopen);
+}
+
+TEST(KeysCan, HeartbeatMistakesNameTheKeyAndLine) {
+  std::string e = error_of(
+      "can:\n"
+      "  heartbeat:\n"
+      "    enabled: true\n"
+      "    frame_id: 0x800\n");
+  EXPECT_NE(e.find("test.yaml:4"), std::string::npos) << e;
+  EXPECT_NE(e.find("frame_id"), std::string::npos) << e;
+  EXPECT_NE(e.find("does not fit 11 bits"), std::string::npos) << e;
+  // The same id is fine as a 29-bit one.
+  EXPECT_EQ(load("can:\n  heartbeat: {enabled: true, frame_id: 0x800, extended: true}\n")
+                .heartbeat.frame_id,
+            0x800U);
+  e = error_of("can:\n  heartbeat:\n    period_ms: 0\n");
+  EXPECT_NE(e.find("test.yaml:3"), std::string::npos) << e;
+  EXPECT_NE(e.find("period_ms must lie in (0, 65535]"), std::string::npos) << e;
+  e = error_of("can:\n  heartbeat:\n    enabled: true\n    frame_id: 0x201\n");
+  EXPECT_NE(e.find("test.yaml:4"), std::string::npos) << e;
+  EXPECT_NE(e.find("is also the command frame id"), std::string::npos) << e;
+  e = error_of("can:\n  heartbeat: {enabled: true, frame_id: 0x102}\n");
+  EXPECT_NE(e.find("frame of signal temperature"), std::string::npos) << e;
+  e = error_of("can:\n  heartbeat: {payload: toggle}\n");
+  EXPECT_NE(e.find("payload"), std::string::npos) << e;
+}
+
 TEST(KeysCan, DocumentingListsEveryKey) {
   Binder root = Binder::documenting();
   Binder can = root.section("can", "CAN driver");
   CanSettings out;
   declare_can_keys(can, out);
   bool found = false;
-  for (const auto& d : root.docs()) found = found || d.path == "can.command.send_each_cycle";
+  bool heartbeat = false;
+  for (const auto& d : root.docs()) {
+    found = found || d.path == "can.command.send_each_cycle";
+    heartbeat = heartbeat || d.path == "can.heartbeat.period_ms";
+  }
   EXPECT_TRUE(found);
+  EXPECT_TRUE(heartbeat);
 }
 
 }  // namespace

@@ -8,6 +8,8 @@
 
 #include "daemon/config/binder.hpp"
 #include "daemon/config/daemon_config.hpp"
+#include "daemon/config/reference_man.hpp"
+#include "daemon/config/startup_checks.hpp"
 
 namespace scp::config {
 namespace {
@@ -76,6 +78,25 @@ TEST(Config, CrossKeyChecks) {
   EXPECT_NE(error_of("estimator: {p0: 10, p_max: 1}\n").find("p_max"), std::string::npos);
 }
 
+// The refinement's window is preallocated: its size is checked against the period, and a fit
+// needs min_window_s of it.
+TEST(Config, RefineSection) {
+  const DaemonConfig defaults = load_config_text("{}", "test.yaml");
+  EXPECT_TRUE(defaults.refine.enabled);
+  EXPECT_EQ(defaults.refine.window_s, 300.0);
+  EXPECT_EQ(defaults.refine.interval_s, 10.0);
+  EXPECT_EQ(defaults.refine.min_window_s, 30.0);
+  EXPECT_NE(error_of("refine: {min_window_s: 400}\n").find("must not exceed refine.window_s"),
+            std::string::npos);
+  const std::string big = error_of("loop: {period_s: 0.0001}\nrefine: {window_s: 200}\n");
+  EXPECT_NE(big.find("2000000 samples"), std::string::npos) << big;
+  EXPECT_NE(big.find("shorten refine.window_s"), std::string::npos) << big;
+  // Disabled, the window is never allocated, so its size does not matter.
+  EXPECT_EQ(error_of("loop: {period_s: 0.0001}\nrefine: {enabled: false, window_s: 200}\n"),
+            "(no error)");
+  EXPECT_NE(error_of("refine: {hac_lags: -1}\n").find("refine.hac_lags"), std::string::npos);
+}
+
 // estimator.known: six entries, each 0 (estimated) or 1 (known, held at theta0).
 TEST(Config, KnownParametersAreZeroOrOne) {
   const auto cfg = load_config_text("estimator:\n  known: [0, 0, 1, 0, 0, 0]\n", "test.yaml");
@@ -117,6 +138,67 @@ TEST(Config, ReferenceListsEveryDeclaredKeyOnce) {
     EXPECT_NE(first, std::string::npos) << key;
     EXPECT_EQ(ref.find(key, first + 1), std::string::npos) << key << " declared twice";
   }
+}
+
+// Issue 11: yaml-cpp keeps both entries of a repeated key and lookups take the first, so the
+// second `loop:` was ignored without a word.
+TEST(Config, DuplicateKeysAreErrorsNamingBothLines) {
+  std::string e = error_of("loop: {period_s: 0.001}\nloop: {period_s: 0.01}\n");
+  EXPECT_NE(e.find("test.yaml:2: duplicate key 'loop' (first at line 1)"), std::string::npos) << e;
+  e = error_of("estimator:\n  beta: 3\n  forgetting: 1\n  beta: 4\n");
+  EXPECT_NE(e.find("test.yaml:4: duplicate key 'estimator.beta' (first at line 2)"),
+            std::string::npos)
+      << e;
+  // The same name in different sections is not a duplicate.
+  EXPECT_EQ(error_of("driver:\n  sim:\n    drift: {m: 0}\n    plant: {m: 0.1}\n"), "(no error)");
+}
+
+// Issue 11's text slips in the declarations (the reference, docs and man page show them).
+TEST(Config, ReferenceTextSlips) {
+  const std::string ref = config_reference_markdown();
+  EXPECT_EQ(ref.find("0 = forgetting."), std::string::npos);
+  EXPECT_NE(ref.find("0 = use estimator.forgetting"), std::string::npos);
+  for (const char* name : {"x", "xdot", "temperature", "voltage"}) {
+    const std::string key = std::string("`driver.can.") + name + ".stale_timeout_s`";
+    const auto row = ref.find(key);
+    ASSERT_NE(row, std::string::npos) << key;
+    const std::string line = ref.substr(row, ref.find('\n', row) - row);
+    EXPECT_NE(line.find(std::string("\"CAN signal ") + name + " stale\""), std::string::npos)
+        << line;
+  }
+}
+
+TEST(Config, ManPageListsEveryKeyOfTheReference) {
+  const std::string man = config_reference_man("9.9");
+  EXPECT_EQ(man.rfind(".TH SCP\\-ESTIMATOR.YAML 5 \"\" \"scp-estimator 9.9\"", 0), 0U)
+      << man.substr(0, 80);
+  Binder doc = Binder::documenting();
+  DaemonConfig defaults;
+  declare_daemon_keys(doc, defaults);
+  std::size_t keys = 0;
+  for (const auto& key : doc.docs()) {
+    std::string escaped;
+    for (const char c : key.path) escaped += c == '-' ? std::string("\\-") : std::string(1, c);
+    const bool top_section = key.type == "section" && key.path.find('.') == std::string::npos;
+    const std::string shown = top_section ? ".SS " + escaped + "\n" : "\\fB" + escaped + "\\fR";
+    EXPECT_NE(man.find(shown), std::string::npos) << key.path;
+    ++keys;
+  }
+  EXPECT_GT(keys, 100U);
+}
+
+TEST(Config, StartupFindingsOfASoundConfigAreEmptyAndSuspiciousValuesWarn) {
+  auto cfg = load_config_text("state: {directory: /tmp}\n", "test.yaml");
+  EXPECT_TRUE(startup_findings(cfg).empty());
+  cfg = load_config_text(
+      "state: {directory: /tmp}\nsafety: {temperature_max_c: 373, voltage_max_v: 3.3}\n"
+      "excitation: {profile: custom, v_max: 5}\n",
+      "test.yaml");
+  const auto findings = startup_findings(cfg);
+  ASSERT_EQ(findings.size(), 2U);
+  EXPECT_EQ(findings[0].severity, Finding::Severity::warning);
+  EXPECT_EQ(findings[0].key, "safety.temperature_max_c");
+  EXPECT_EQ(findings[1].key, "excitation.v_max");
 }
 
 }  // namespace

@@ -19,8 +19,9 @@ class LoopTest : public ::testing::Test {
  protected:
   LoopTest() : config_(config::load_config_text("{}", "defaults")) {}
 
-  Loop& make_loop(drivers::Driver& driver) {
-    loop_ = std::make_unique<Loop>(config_, driver, *published_, *commands_, nullptr, false);
+  Loop& make_loop(drivers::Driver& driver, refine::HandOffRing* handoff = nullptr) {
+    loop_ =
+        std::make_unique<Loop>(config_, driver, *published_, *commands_, nullptr, false, handoff);
     return *loop_;
   }
   CycleResult step() {
@@ -123,6 +124,46 @@ TEST_F(LoopTest, DriverErrorAndStaleDataAreFaults) {
   EXPECT_NE(std::string(state().fault_reason.data()).find("no fresh reading"), std::string::npos);
 }
 
+// A device absent or slow at start (issue 9) is awaited in STARTING at 0 V, with the driver's
+// reason published, however long it takes (driver.start_timeout_s is the service's bound); it is
+// not a fault. Once it has delivered a reading, the same error is a fault.
+TEST_F(LoopTest, ADeviceSilentSinceStartIsAwaitedNotFaulted) {
+  testing::FakeDriver driver;
+  driver.status = drivers::IoStatus::error;
+  make_loop(driver);
+  const int stale_cycles = static_cast<int>(config_.safety.stale_timeout_s / 0.001);
+  for (int i = 0; i < 10 * stale_cycles; ++i) step();
+  PublishedState s = state();
+  EXPECT_EQ(s.state, RunState::starting);
+  EXPECT_TRUE(s.awaiting_device);
+  EXPECT_STREQ(s.waiting_reason.data(), "fake read failure");
+  EXPECT_EQ(s.faults.count, 0U);
+  EXPECT_EQ(driver.writes, 0);  // only 0 V (safe_state), every cycle
+  EXPECT_EQ(driver.last_written, 0.0);
+  EXPECT_EQ(driver.safe_states, 10 * stale_cycles);
+
+  driver.status = drivers::IoStatus::no_data;  // connected, nothing sent yet
+  for (int i = 0; i < 3 * stale_cycles; ++i) step();
+  s = state();
+  EXPECT_EQ(s.state, RunState::starting);
+  EXPECT_STREQ(s.waiting_reason.data(), "the device sends no data yet");
+
+  driver.status = drivers::IoStatus::ok;
+  k_ = 1000;
+  step();
+  s = state();
+  EXPECT_EQ(s.state, RunState::running);
+  EXPECT_FALSE(s.awaiting_device);
+  EXPECT_STREQ(s.waiting_reason.data(), "");
+
+  driver.status = drivers::IoStatus::error;
+  step();
+  s = state();
+  EXPECT_EQ(s.state, RunState::fault);
+  EXPECT_FALSE(s.awaiting_device);
+  EXPECT_EQ(s.faults.count, 1U);
+}
+
 TEST_F(LoopTest, ExcitationOffHoldsZeroAndResetRestartsTheEstimator) {
   drivers::sim::SimDriver driver(config_.driver.sim);
   driver.open();
@@ -175,6 +216,141 @@ TEST_F(LoopTest, CyclesAllocateNothingAfterStartUp) {
   rt::alloc::disarm();
   EXPECT_EQ(allocations, 0U);
   EXPECT_EQ(state().estimate.updates > 0, true);
+}
+
+// The same with the refinement's hand-off ring attached, filling up and then full (every push
+// fails and is counted).
+TEST_F(LoopTest, HandingSamplesOffAllocatesNothing) {
+  drivers::sim::SimDriver driver(config_.driver.sim);
+  driver.open();
+  auto handoff = std::make_unique<refine::HandOffRing>();
+  make_loop(driver, handoff.get());
+  step();
+  // All but 1000 slots taken, so that both the successful and the failing push are counted.
+  for (std::size_t i = 0; i < refine::kHandOffCapacity - 1000; ++i) handoff->try_push({});
+  rt::alloc::arm();
+  const rt::alloc::ScopedAllocationCount count;
+  for (int i = 0; i < 3000; ++i) step();
+  const auto allocations = count.count();
+  rt::alloc::disarm();
+  EXPECT_EQ(allocations, 0U);
+  EXPECT_GT(loop_->dropped_handoff_samples(), 0U);
+}
+
+// A reload's excitation reaches the loop over the exchange's rings: it takes effect in the next
+// cycle, the old one is given back to be freed off the loop, and the loop allocates nothing.
+TEST_F(LoopTest, ExcitationHandOverTakesEffectNextCycleAndAllocatesNothing) {
+  drivers::sim::SimDriver driver(config_.driver.sim);
+  driver.open();
+  auto exchange = std::make_unique<ExcitationExchange>();
+  make_loop(driver);
+  loop_->follow_excitation(exchange.get());
+  for (int i = 0; i < 100; ++i) step();
+  ASSERT_EQ(state().state, RunState::running);
+  EXPECT_NE(state().voltage_command, 1.25);
+  excitation::ExcitationSettings constant;
+  constant.offset = 1.25;
+  for (int round = 0; round < 3; ++round) {
+    constant.offset = 1.25 + 0.25 * round;
+    ASSERT_TRUE(exchange->offer(std::make_unique<excitation::Excitation>(constant), -1));
+    rt::alloc::arm();
+    const rt::alloc::ScopedAllocationCount count;
+    step();
+    const auto allocations = count.count();
+    rt::alloc::disarm();
+    EXPECT_EQ(allocations, 0U);
+    EXPECT_EQ(state().voltage_command, constant.offset);
+  }
+  // excitation.enabled alone: no new excitation, the flag only.
+  ASSERT_TRUE(exchange->offer(nullptr, 0));
+  step();
+  EXPECT_EQ(state().voltage_command, 0.0);
+  EXPECT_FALSE(state().excitation_enabled);
+  ASSERT_TRUE(exchange->offer(nullptr, 1));
+  step();
+  EXPECT_EQ(state().voltage_command, 1.75);
+}
+
+// The ring the loop records to is read each cycle: null stops the rows, a ring starts them.
+TEST_F(LoopTest, RecordingFollowsTheRingPointer) {
+  drivers::sim::SimDriver driver(config_.driver.sim);
+  driver.open();
+  auto ring = std::make_unique<RecordRing>();
+  std::atomic<RecordRing*> live{nullptr};
+  make_loop(driver);
+  loop_->follow_recording(&live);
+  for (int i = 0; i < 100; ++i) step();
+  EXPECT_EQ(ring->size_approx(), 0U);
+  EXPECT_FALSE(state().recording);
+  live.store(ring.get());
+  for (int i = 0; i < 100; ++i) step();
+  EXPECT_EQ(ring->size_approx(), 100U);
+  EXPECT_TRUE(state().recording);
+  live.store(nullptr);
+  for (int i = 0; i < 100; ++i) step();
+  EXPECT_EQ(ring->size_approx(), 100U);
+}
+
+TEST_F(LoopTest, HandsOffEverySampleFedToTheEstimatorWithTBarAndVoltage) {
+  testing::FakeDriver driver;
+  driver.next = {0.0, 1e-3, 0.0, 40.0, 1.5};
+  auto handoff = std::make_unique<refine::HandOffRing>();
+  make_loop(driver, handoff.get());
+  k_ = 1000;
+  for (int i = 0; i < 5; ++i) step();
+  // ẋ is measured here (finite), so every fresh sample is fed as it is.
+  EXPECT_EQ(handoff->size_approx(), 5U);
+  refine::HandOff h;
+  ASSERT_TRUE(handoff->try_pop(h));
+  EXPECT_DOUBLE_EQ(h.sample.t, 1.0);
+  EXPECT_DOUBLE_EQ(h.sample.x, 1e-3);
+  EXPECT_DOUBLE_EQ(h.sample.tbar, 40.0 - config_.actuator.ambient_c);
+  EXPECT_DOUBLE_EQ(h.sample.voltage, 1.5);
+  EXPECT_TRUE(std::isinf(h.sample.voltage_since) && h.sample.voltage_since < 0);
+  EXPECT_EQ(state().handoff_dropped, 0U);
+}
+
+TEST_F(LoopTest, AFullHandOffRingCountsDropsAndTheNextSampleStartsANewSegment) {
+  testing::FakeDriver driver;
+  auto handoff = std::make_unique<refine::HandOffRing>();
+  make_loop(driver, handoff.get());
+  k_ = 1000;
+  for (std::size_t i = 0; i < refine::kHandOffCapacity + 3; ++i) step();
+  EXPECT_EQ(loop_->dropped_handoff_samples(), 3U);
+  EXPECT_EQ(state().handoff_dropped, 3U);
+  refine::HandOff h;
+  ASSERT_TRUE(handoff->try_pop(h));
+  const std::uint64_t first = h.segment;
+  while (handoff->try_pop(h)) EXPECT_EQ(h.segment, first);
+  step();
+  ASSERT_TRUE(handoff->try_pop(h));
+  EXPECT_NE(h.segment, first);
+}
+
+TEST_F(LoopTest, AResetAndAFaultEachStartANewSegment) {
+  testing::FakeDriver driver;
+  auto handoff = std::make_unique<refine::HandOffRing>();
+  make_loop(driver, handoff.get());
+  k_ = 1000;
+  refine::HandOff h;
+  step();
+  ASSERT_TRUE(handoff->try_pop(h));
+  const std::uint64_t before_reset = h.segment;
+  command(CommandKind::reset);
+  step();
+  ASSERT_TRUE(handoff->try_pop(h));
+  const std::uint64_t after_reset = h.segment;
+  EXPECT_NE(after_reset, before_reset);
+  // A read failure faults the loop; it recovers after safety.recover_after_s of healthy readings.
+  driver.status = drivers::IoStatus::error;
+  step();
+  driver.status = drivers::IoStatus::ok;
+  while (state().state != RunState::running && k_ < 10000) step();
+  ASSERT_EQ(state().state, RunState::running);
+  step();
+  while (handoff->try_pop(h)) {
+  }
+  EXPECT_NE(h.segment, after_reset);
 }
 
 }  // namespace

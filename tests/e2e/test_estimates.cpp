@@ -72,11 +72,16 @@ TEST(Estimates, ResetAndExcitationOffThroughSocketAndCtl) {
   const std::vector<double> theta0{500, 0.3, 700, 0.05, 0.03, 0.5};
   DaemonProcess daemon(dir, {{"estimator", {{"theta0", theta0}}}});
   daemon.start();
-  sleep_s(1.5);
+  // More than 1000 updates: 1 s of the 1 kHz loop, longer on a loaded machine (polled, not slept).
+  json before = daemon.estimate();
+  for (int i = 0; i < 2000 && before.value("updates", 0ULL) <= 1000u; ++i) {
+    sleep_s(0.01);
+    before = daemon.estimate();
+  }
 
   // --- through the socket
   Client c = daemon.connect();
-  const json before = c.request({{"request", "estimate"}});
+  before = c.request({{"request", "estimate"}});
   ASSERT_GT(before.value("updates", 0ULL), 1000u) << before.dump();
   const json ack = c.request({{"request", "reset"}});
   EXPECT_EQ(ack.value("class", ""), "ACK") << ack.dump();

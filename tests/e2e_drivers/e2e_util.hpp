@@ -111,11 +111,15 @@ inline std::vector<std::string> printed_ptys(const std::string& out) {
   return ptys;
 }
 
-// One line "step,wall_s,volts" per command the peer received.
+// One line "step,wall_s,volts[,note]" per command the peer received. note: "" = applied,
+// "unanswered" = received in a dead-slave window and not applied, "watchdog" = the peer's own
+// communication watchdog set the output to 0 V.
 struct LoggedCommand {
   long long step = 0;
   double wall_s = 0.0;
   double volts = 0.0;
+  std::string note;
+  bool applied() const { return note.empty() || note == "watchdog"; }
 };
 inline std::vector<LoggedCommand> read_command_log(const std::string& path) {
   std::vector<LoggedCommand> out;
@@ -124,6 +128,11 @@ inline std::vector<LoggedCommand> read_command_log(const std::string& path) {
   while (std::getline(in, line)) {
     LoggedCommand c;
     if (std::sscanf(line.c_str(), "%lld,%lf,%lf", &c.step, &c.wall_s, &c.volts) == 3) {
+      std::size_t at = 0;
+      for (int commas = 0; commas < 3 && at != std::string::npos; ++commas) {
+        at = line.find(',', at == 0 && commas == 0 ? 0 : at + 1);
+      }
+      if (at != std::string::npos) c.note = line.substr(at + 1);
       out.push_back(c);
     }
   }

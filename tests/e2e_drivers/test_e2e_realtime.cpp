@@ -1,5 +1,6 @@
 // The real-time daemon on each transport for a few seconds of wall time: data flows (the
-// driver's read count grows with the loop's cycles), no fault, and the thermal pair θ5, θ6 moves
+// driver's read count grows with the loop's cycles), RUNNING nearly all the time (a loaded machine
+// may drop a link, from which the daemon recovers by itself), and the thermal pair θ5, θ6 moves
 // toward θ. Convergence itself is the lock-step tests' job; these check the real-time path.
 
 #include <gtest/gtest.h>
@@ -8,6 +9,7 @@
 
 #include "e2e_configs.hpp"
 #include "e2e_util.hpp"
+#include "tests/support/peer_required.hpp"
 
 namespace scp::test {
 namespace {
@@ -93,14 +95,19 @@ TEST(E2eRealTime, ModbusTcpRunsWithoutFaults) {
   ChildProcess daemon({kDaemon, "--config",
                        dir.write("d.yaml", modbus_tcp_yaml(setup, printed_port(simdaq.output()),
                                                            kFloat32Map, 0.002))});
-  expect_healthy_run(daemon, setup, "modbus tcp");
+  // The default max_consecutive_failures (4): a peer descheduled for 4 periods on a loaded machine
+  // drops the link, and the run must recover from it by itself. Measured on the project's CI (a
+  // loaded 2-core machine): 29 of 32 polls RUNNING, one link drop after 4 timeouts of 2 ms, back
+  // to RUNNING after recover_after_s; unloaded: 32 of 32.
+  expect_healthy_run(daemon, setup, "modbus tcp", 0.75);
 }
 
 TEST(E2eRealTime, ModbusRtuOverAPtyPairRunsWithoutFaults) {
   TempDir dir;
   ChildProcess socat(
       with_realtime_priority({"/usr/bin/socat", "-d", "-d", "pty,raw,echo=0", "pty,raw,echo=0"}));
-  if (!socat.wait_for("starting data transfer", 10.0)) GTEST_SKIP() << "socat: " << socat.output();
+  if (!socat.wait_for("starting data transfer", 10.0))
+    SCP_PEER_MISSING("socat: " << socat.output());
   const auto ptys = printed_ptys(socat.output());
   ASSERT_EQ(ptys.size(), 2U) << socat.output();
   const RunSetup setup = realtime_setup(dir, 0.01);
@@ -125,7 +132,9 @@ TEST(E2eRealTime, CanFramesRunWithoutFaults) {
                     wire.node);
   ASSERT_TRUE(node.wait_for("CAN node on fd 3", 10.0)) << node.output();
   ChildProcess daemon({kDaemon, "--config", cfg}, wire.daemon);
-  expect_healthy_run(daemon, setup, "can");
+  // A node descheduled past the signals' stale timeout (0.05 s) faults the loop, which recovers
+  // by itself: measured under `stress -c 2`, 29 of 31 polls RUNNING ("CAN signal x stale").
+  expect_healthy_run(daemon, setup, "can", 0.75);
 }
 
 }  // namespace

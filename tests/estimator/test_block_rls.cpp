@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 
 #include "estimator/block_rls.hpp"
 
@@ -68,7 +69,55 @@ TEST(BlockRls, TwoStepsMatchHandComputation) {
   EXPECT_NEAR(rls.p_max_eig(), 1.0 / l_min, 1e-9 / l_min);
   const double window = (1.0 - std::exp(-0.5 * 0.03)) / 0.5;
   EXPECT_NEAR(rls.window(), window, 1e-15);
-  EXPECT_NEAR(rls.excitation(), (l_min - rmin) / window, 1e-9);
+  // Scale-free excitation: λ_min of the data's information in correlation form, where what R
+  // holds without data is the floor plus the prior's remainder e^{−λP t}(1/p0 − R_min).
+  const double r0 = rmin + (1.0 - 0.5 * window) * (0.1 - rmin);
+  const double c11 = (hand.r11 - r0) / hand.r11, c22 = (hand.r22 - r0) / hand.r22;
+  const double c12 = hand.r12 / std::sqrt(hand.r11 * hand.r22);
+  const double c_min = 0.5 * (c11 + c22 - std::sqrt((c11 - c22) * (c11 - c22) + 4.0 * c12 * c12));
+  EXPECT_NEAR(rls.excitation(), c_min, 1e-12);
+  EXPECT_GT(rls.excitation(), 0.0);
+}
+
+// The regressor of the mechanical block, four independent tones (a persistently exciting
+// signal), with column `scaled` multiplied by `factor` (a change of units: x in mm, not m).
+Eigen::RowVector4d tones(double t, int scaled, double factor) {
+  constexpr double kTwoPi = 6.283185307179586;
+  Eigen::RowVector4d w(std::sin(kTwoPi * 0.7 * t), 0.5 * std::cos(kTwoPi * 1.3 * t),
+                       0.2 * std::sin(kTwoPi * 2.9 * t + 1.0),
+                       1.0 + 0.3 * std::sin(kTwoPi * 0.2 * t));
+  w(scaled) *= factor;
+  return w;
+}
+
+// Issue 9: "converged" and the excitation figure must mean the same on any actuator and in any
+// units. The measure is that of the data's information in correlation form, so scaling a column
+// by 1e3 leaves it unchanged (to rounding and the floor's share) while the raw λ_min(R) moves by
+// orders of magnitude; and it falls once the regressor stops exciting every direction (held at a
+// constant, as the plant's regressor is when the voltage is held).
+TEST(BlockRls, ExcitationIsScaleFreeAndFallsWhenTheExcitationStops) {
+  BlockRls<4>::Settings set;  // λP 0.8 1/s, p0 100, p_max 1e12
+  BlockRls<4> metres(set), millimetres(set);
+  const auto f = ForgettingStep::make(set.forgetting, 1e-3);
+  double t = 0.0;
+  for (int k = 0; k < 30000; ++k, t += 1e-3) {  // 30 s: the prior has faded to e^{-24}
+    metres.step(tones(t, 2, 1.0), 0.0, f);
+    millimetres.step(tones(t, 2, 1e3), 0.0, f);
+  }
+  const double excited = metres.excitation();
+  std::printf("[ figures ] excitation %.6g (column scaled 1e3: %.6g); p_max_eig %.3g vs %.3g\n",
+              excited, millimetres.excitation(), metres.p_max_eig(), millimetres.p_max_eig());
+  EXPECT_GT(excited, 0.01);
+  EXPECT_LE(excited, 1.0);
+  EXPECT_NEAR(millimetres.excitation(), excited, 1e-9 * excited);
+  // What the old, raw measure saw: the weakest direction's information changed by the units.
+  EXPECT_GT(std::abs(std::log10(millimetres.p_max_eig() / metres.p_max_eig())), std::log10(5.0));
+
+  // Excitation stops: the regressor is held where it was (the plant at a held voltage).
+  const Eigen::RowVector4d held = tones(t, 2, 1.0);
+  for (int k = 0; k < 10000; ++k) metres.step(held, 0.0, f);  // 10 s = 8 forgetting times
+  std::printf("[ figures ] excitation after 10 s of a held regressor: %.3g\n", metres.excitation());
+  EXPECT_LT(metres.excitation(), 1e-2 * excited);
 }
 
 TEST(BlockRls, ZeroRegressorLeavesEstimateAndDecaysTowardFloor) {

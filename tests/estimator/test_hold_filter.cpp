@@ -105,6 +105,24 @@ TEST(HoldFilter, ZohIsExactForStep) {
   EXPECT_LT(max_err, 1e-13);
 }
 
+// A DAC whose command lands mid-interval: u_prev over the first h − τ, u_next over the last τ.
+// The split step must equal the two ZOH sub-steps composed (and the closed form), for any τ.
+TEST(HoldFilter, ZohSplitStepIsTwoExactSubSteps) {
+  const double h = 0.01, y0 = 0.37, u_prev = 2.1, u_next = 2.6;
+  const HoldCoefficients k = HoldCoefficients::make(kBeta, h);
+  for (const double tail : {1e-6, 0.002, 0.005, 0.0099}) {
+    const HoldCoefficients first = HoldCoefficients::make(kBeta, h - tail);
+    const HoldCoefficients last = HoldCoefficients::make(kBeta, tail);
+    const double composed = last.zoh_step(first.zoh_step(y0, u_prev), u_next);
+    EXPECT_NEAR(k.zoh_split_step(y0, u_prev, u_next, kBeta, tail), composed, 1e-15) << tail;
+    const double exact =
+        u_next + (u_prev - u_next) * std::exp(-kBeta * tail) + (y0 - u_prev) * std::exp(-kBeta * h);
+    EXPECT_NEAR(k.zoh_split_step(y0, u_prev, u_next, kBeta, tail), exact, 1e-14) << tail;
+  }
+  // τ = h is the plain ZOH step of u_next.
+  EXPECT_NEAR(k.zoh_split_step(y0, u_prev, u_next, kBeta, h), k.zoh_step(y0, u_next), 1e-15);
+}
+
 TEST(HoldFilter, CoefficientsSumToOneMinusPhi) {
   for (double h : {1e-6, 1e-3, 0.1, 2.0}) {
     const HoldCoefficients k = HoldCoefficients::make(kBeta, h);

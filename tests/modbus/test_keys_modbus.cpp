@@ -110,6 +110,25 @@ TEST(ModbusKeys, CommandChecks) {
   EXPECT_NE(e.find("signals.voltage"), std::string::npos) << e;
 }
 
+// Some devices implement only function 16: a one-register command may use it; function 6 cannot
+// write a 32-bit command. The heartbeat register is read too.
+TEST(ModbusKeys, CommandFunctionAndWatchdog) {
+  const ModbusSettings s = load(R"(modbus:
+  command: {address: 5, type: uint16, scale: 0.001, function: 16}
+  watchdog: {register: 100, every_cycles: 20}
+)");
+  EXPECT_EQ(s.command.function, 16);
+  EXPECT_EQ(s.watchdog_register, 100);
+  EXPECT_EQ(s.watchdog_every, 20);
+  EXPECT_EQ(load("modbus: {}\n").command.function, 0);  // auto
+  EXPECT_EQ(load("modbus: {}\n").watchdog_register, -1);
+  const std::string e = error_of(R"(modbus:
+  command: {address: 0, type: float32, word_order: ab, function: 6}
+)");
+  EXPECT_NE(e.find("command.function"), std::string::npos) << e;
+  EXPECT_NE(e.find("use 16"), std::string::npos) << e;
+}
+
 TEST(ModbusKeys, OtherMistakes) {
   std::string e = error_of("modbus:\n  transport: rtu\n  unit_id: 0\n");
   EXPECT_NE(e.find("modbus.unit_id"), std::string::npos) << e;

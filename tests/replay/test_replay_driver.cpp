@@ -11,7 +11,7 @@ namespace {
 
 using testing::TraceFile;
 
-TEST(ReplayDriver, ReturnsRowsRebasedThenEndOfData) {
+TEST(ReplayDriver, ReturnsRowsAsRecordedThenEndOfData) {
   const TraceFile f("t,x,xdot,T,V\n100.5,1e-6,,30,1\n100.75,2e-6,,31,2\n101.0,3e-6,,32,3\n");
   ReplayDriver d(f.path());
   d.open();
@@ -19,8 +19,11 @@ TEST(ReplayDriver, ReturnsRowsRebasedThenEndOfData) {
   EXPECT_EQ(d.period(), 0.25);
   EXPECT_EQ(d.size(), 3u);
   Sample out;
-  const double expected_t[3] = {0.0, 0.25, 0.5};
+  const double expected_t[3] = {100.5, 100.75, 101.0};
   for (int i = 0; i < 3; ++i) {
+    double next = 0.0;
+    ASSERT_TRUE(d.next_time(next));
+    EXPECT_EQ(next, expected_t[i]);
     ASSERT_EQ(d.read({i * 0.25, 0.25}, out).status, IoStatus::ok);
     EXPECT_EQ(out.t, expected_t[i]);
     EXPECT_EQ(out.x, (i + 1) * 1e-6);

@@ -201,3 +201,36 @@ TEST(RtSetup, PrivilegedSettingsTakeEffect) {
 
 }  // namespace
 }  // namespace scp::rt
+
+namespace scp::rt {
+namespace {
+
+std::size_t new_thread_stack_size() {
+  std::size_t size = 0;
+  std::thread t([&size] {
+    pthread_attr_t attr;
+    ASSERT_EQ(pthread_getattr_np(pthread_self(), &attr), 0);
+    void* addr = nullptr;
+    pthread_attr_getstack(&attr, &addr, &size);
+    pthread_attr_destroy(&attr);
+  });
+  t.join();
+  return size;
+}
+
+// Threads started after set_default_thread_stack get that stack (under mlockall every byte of it
+// is locked RAM), and the loop's stack prefault still fits in three quarters of it.
+TEST(RtSetup, DefaultThreadStackIsSmall) {
+  pthread_attr_t saved;
+  ASSERT_EQ(pthread_getattr_default_np(&saved), 0);
+  ASSERT_TRUE(set_default_thread_stack(kThreadStackBytes));
+  const std::size_t size = new_thread_stack_size();
+  EXPECT_GE(size, kThreadStackBytes);
+  EXPECT_LT(size, kThreadStackBytes + (std::size_t{64} << 10));
+  EXPECT_GE(size / 4 * 3, RtSettings{}.prefault_stack_bytes);
+  ASSERT_EQ(pthread_setattr_default_np(&saved), 0);
+  pthread_attr_destroy(&saved);
+}
+
+}  // namespace
+}  // namespace scp::rt

@@ -26,8 +26,8 @@ class ApiServerTest : public ::testing::Test {
   }
   void start() {
     loop_.start();
-    server_ = std::make_unique<ApiServer>(settings_, ServerInfo{"9.9.9-test", "sim", "/etc/x.yaml"},
-                                          state_, ring_);
+    server_ = std::make_unique<ApiServer>(
+        settings_, ServerInfo{"9.9.9-test", "sim", "/etc/x.yaml", ""}, state_, ring_);
     server_->start();
   }
   void TearDown() override {
@@ -76,7 +76,7 @@ TEST_F(ApiServerTest, VersionOnConnectThenStatusAndEstimate) {
   EXPECT_EQ((*version)["class"], "VERSION");
   EXPECT_EQ((*version)["release"], "9.9.9-test");
   EXPECT_EQ((*version)["proto_major"], 1);
-  EXPECT_EQ((*version)["proto_minor"], 0);
+  EXPECT_EQ((*version)["proto_minor"], 2);
 
   ASSERT_TRUE(c.send({{"request", "status"}}));
   const auto status = c.read_json();
@@ -142,6 +142,27 @@ TEST_F(ApiServerTest, WatchAtFiveHundredHertz) {
   }
   EXPECT_GE(estimates, 200);  // 250 expected; tolerate a loaded 2-core machine
   EXPECT_LE(estimates, 275);
+}
+
+// ESTIMATE is rendered once per publication and cached: the cache must follow the loop's next
+// publication (reset zeroes `updates` in the fake loop), however many requests hit it before.
+TEST_F(ApiServerTest, CachedEstimateFollowsTheNextPublication) {
+  start();
+  auto c = client();
+  for (int i = 0; i < 20; ++i) {
+    ASSERT_TRUE(c->send({{"request", "estimate"}}));
+    const auto estimate = c->read_json();
+    ASSERT_TRUE(estimate);
+    EXPECT_EQ((*estimate)["updates"], 12500);
+  }
+  ASSERT_TRUE(c->send({{"request", "reset"}}));
+  const auto ack = c->read_json();
+  ASSERT_TRUE(ack);
+  EXPECT_EQ((*ack)["ok"], true);
+  ASSERT_TRUE(c->send({{"request", "estimate"}}));
+  const auto after = c->read_json();
+  ASSERT_TRUE(after);
+  EXPECT_EQ((*after)["updates"], 0);
 }
 
 TEST_F(ApiServerTest, CommandsReachTheLoopAndAreAcknowledged) {
@@ -343,6 +364,7 @@ TEST_F(ApiServerTest, SixtyFourConcurrentClientsAllServed) {
 
 TEST_F(ApiServerTest, MaxClientsRefusesTheNextOne) {
   settings_.max_clients = 2;
+  settings_.privileged_reserve = 0;  // this test runs as root, a privileged peer
   start();
   auto a = client();
   auto b = client();
@@ -352,6 +374,23 @@ TEST_F(ApiServerTest, MaxClientsRefusesTheNextOne) {
   EXPECT_EQ((*reply)["class"], "ERROR");
   EXPECT_NE(reply->value("message", "").find("too many clients"), std::string::npos);
   EXPECT_TRUE(c.wait_closed(1.0));
+}
+
+// Slots beyond max_clients are kept for privileged peers (root here): they get in when ordinary
+// slots are all taken, up to the reserve.
+TEST_F(ApiServerTest, PrivilegedPeersHaveReservedSlots) {
+  if (::geteuid() != 0) GTEST_SKIP() << "needs root to be a privileged peer";
+  settings_.max_clients = 2;
+  settings_.privileged_reserve = 1;
+  start();
+  auto a = client();
+  auto b = client();
+  auto reserved = client();  // the reserve: greeted with VERSION (client() checks it)
+  TestClient refused(settings_.socket_path);
+  const auto reply = refused.read_json();
+  ASSERT_TRUE(reply);
+  EXPECT_EQ((*reply)["class"], "ERROR");
+  EXPECT_NE(reply->value("message", "").find("too many clients"), std::string::npos);
 }
 
 TEST_F(ApiServerTest, StaleSocketReplacedLiveOneAndNonSocketRefused) {
@@ -375,7 +414,7 @@ TEST_F(ApiServerTest, StaleSocketReplacedLiveOneAndNonSocketRefused) {
   EXPECT_EQ(st.st_mode & 07777, 0666U);
 
   // A second daemon on the same path must refuse, leaving the first intact.
-  ApiServer second(settings_, ServerInfo{"x", "sim", ""}, state_, ring_);
+  ApiServer second(settings_, ServerInfo{"x", "sim", "", ""}, state_, ring_);
   try {
     second.start();
     FAIL() << "second server started on a live socket";
@@ -390,7 +429,7 @@ TEST_F(ApiServerTest, StaleSocketReplacedLiveOneAndNonSocketRefused) {
   ServerSettings other = settings_;
   other.socket_path = dir_.path() + "/not-a-socket";
   std::ofstream(other.socket_path) << "data";
-  ApiServer third(other, ServerInfo{"x", "sim", ""}, state_, ring_);
+  ApiServer third(other, ServerInfo{"x", "sim", "", ""}, state_, ring_);
   try {
     third.start();
     FAIL() << "started over a regular file";
@@ -404,7 +443,7 @@ TEST_F(ApiServerTest, StaleSocketReplacedLiveOneAndNonSocketRefused) {
 
 TEST_F(ApiServerTest, BindFailureNamesTheRemedy) {
   settings_.socket_path = dir_.path() + "/missing-dir/scp.sock";
-  ApiServer server(settings_, ServerInfo{"x", "sim", ""}, state_, ring_);
+  ApiServer server(settings_, ServerInfo{"x", "sim", "", ""}, state_, ring_);
   try {
     server.start();
     FAIL();
@@ -414,7 +453,7 @@ TEST_F(ApiServerTest, BindFailureNamesTheRemedy) {
   }
   settings_.socket_path = dir_.path() + "/ok.sock";
   settings_.group = "no-such-group-scp-test";
-  ApiServer server2(settings_, ServerInfo{"x", "sim", ""}, state_, ring_);
+  ApiServer server2(settings_, ServerInfo{"x", "sim", "", ""}, state_, ring_);
   EXPECT_THROW(server2.start(), std::runtime_error);
 }
 

@@ -41,8 +41,8 @@ class CtlTest : public ::testing::Test {
     settings_.mode = 0666;
     loop_.base = test::sample_state();
     loop_.start();
-    server_ =
-        std::make_unique<ApiServer>(settings_, ServerInfo{"9.9.9-test", "sim", ""}, state_, ring_);
+    server_ = std::make_unique<ApiServer>(settings_, ServerInfo{"9.9.9-test", "sim", "", ""},
+                                          state_, ring_);
     server_->start();
     socket_arg_ = "--socket " + settings_.socket_path;
   }
@@ -83,6 +83,57 @@ TEST_F(CtlTest, GetPrintsTheTable) {
   EXPECT_TRUE(contains(r.out, "k/m")) << r.out;
   EXPECT_TRUE(contains(r.out, "b      = 124.7")) << r.out;
   EXPECT_TRUE(contains(r.out, "thermal")) << r.out;
+}
+
+// With the refinement on, `get` shows the paper law's and the refined estimate side by side, marks
+// the best one and prints the bias flags and the fit's window; `status` its counters.
+TEST(CtlRefined, GetPrintsBothEstimatesAndWhichIsBest) {
+  test::TempDir dir;
+  ServerSettings settings;
+  settings.socket_path = dir.path() + "/scp.sock";
+  settings.mode = 0666;
+  rt::Seqlock<PublishedState> state;
+  CommandRing ring;
+  test::FakeLoop loop{state, ring};
+  loop.base = test::sample_state();
+  loop.start();
+  rt::Seqlock<refine::RefinedView> refined;
+  refine::RefinedView view;
+  view.valid = true;
+  view.converged = true;
+  view.fits = 5;
+  view.converged_fits = 5;
+  view.windows = 1;
+  view.interval_s = 1e6;  // fresh whatever the fake loop's time
+  view.theta_hat = {1247.5, 0.8, 1813.0, 0.1, 0.0594059, 1.1001100};
+  view.sigma = {2.5, 0.001, 3.0, 1e-4, 1e-8, 1e-7};
+  view.t_begin = 0.0;
+  view.t_end = 12.0;
+  view.samples = 12001;
+  view.iterations = 7;
+  view.paper_biased = {true, false};
+  refined.store(view);
+  ApiServer server(settings, ServerInfo{"9.9.9-test", "sim", "", ""}, state, ring, &refined);
+  server.start();
+  const CtlRun r = run("--socket " + settings.socket_path + " get");
+  server.stop();
+  loop.stop();
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_TRUE(contains(r.out, "refined*")) << r.out;
+  EXPECT_TRUE(contains(r.out, "best: refined; paper law biased: mechanical yes, thermal no"))
+      << r.out;
+  EXPECT_TRUE(contains(r.out, "refined: window [0.0, 12.0] s (12001 samples)")) << r.out;
+  std::istringstream lines(r.out);
+  std::string line;
+  bool found = false;
+  while (std::getline(lines, line)) {
+    if (line.rfind("b/m ", 0) != 0) continue;
+    found = true;
+    EXPECT_TRUE(contains(line, "1259.47")) << line;   // the paper law's
+    EXPECT_TRUE(contains(line, "1247.5")) << line;    // the refined
+    EXPECT_TRUE(contains(line, "4.01e-04")) << line;  // its rel. error
+  }
+  EXPECT_TRUE(found) << r.out;
 }
 
 TEST_F(CtlTest, JsonAndEnvironmentSocket) {

@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <memory>
 #include <nlohmann/json.hpp>
 
 #include "daemon/server/render.hpp"
@@ -13,7 +15,7 @@ using nlohmann::json;
 
 TEST(Render, VersionErrorAckWatchAreExactLines) {
   EXPECT_EQ(render_version("1.2.3"),
-            "{\"class\":\"VERSION\",\"proto_major\":1,\"proto_minor\":0,\"release\":\"1.2.3\"}\n");
+            "{\"class\":\"VERSION\",\"proto_major\":1,\"proto_minor\":2,\"release\":\"1.2.3\"}\n");
   EXPECT_EQ(render_error("bad \"x\""), "{\"class\":\"ERROR\",\"message\":\"bad \\\"x\\\"\"}\n");
   EXPECT_EQ(render_ack("reset", true, "done"),
             "{\"class\":\"ACK\",\"message\":\"done\",\"ok\":true,\"request\":\"reset\"}\n");
@@ -29,11 +31,26 @@ TEST(Render, InvalidUtf8IsReplacedNotThrown) {
   EXPECT_EQ(parsed["class"], "ERROR");
 }
 
+// A fault whose 0 V did not reach the device: STATUS must not claim 0 V.
+TEST(Render, StatusTellsAnUnconfirmedOutput) {
+  PublishedState s = test::sample_state();
+  s.state = RunState::fault;
+  s.voltage_command = 0.0;
+  s.driver.output_v = 1.56;
+  s.driver.output_confirmed = false;
+  s.driver.late_replies = 7;
+  const json j = json::parse(render_status(s, {"0.1.0", "modbus", "", ""}));
+  EXPECT_DOUBLE_EQ(j["voltage"].get<double>(), 1.56);
+  EXPECT_DOUBLE_EQ(j["voltage_command"].get<double>(), 0.0);
+  EXPECT_EQ(j["output"], "unconfirmed");
+  EXPECT_EQ(j["driver_stats"]["late_replies"], 7);
+}
+
 TEST(Render, Status) {
   PublishedState s = test::sample_state();
   s.state = RunState::fault;
   test::copy_text(s.fault_reason, "x sensor stale for 50 ms");
-  const ServerInfo info{"0.1.0", "sim", "/etc/scp.yaml"};
+  const ServerInfo info{"0.1.0", "sim", "/etc/scp.yaml", ""};
   const std::string text = render_status(s, info);
   ASSERT_EQ(text.back(), '\n');
   const json j = json::parse(text);
@@ -46,7 +63,10 @@ TEST(Render, Status) {
   EXPECT_DOUBLE_EQ(j["uptime_s"].get<double>(), 12.5);
   EXPECT_DOUBLE_EQ(j["period_s"].get<double>(), 0.001);
   EXPECT_EQ(j["excitation"], true);
-  EXPECT_DOUBLE_EQ(j["voltage"].get<double>(), 1.75);
+  EXPECT_DOUBLE_EQ(j["voltage_command"].get<double>(), 1.75);
+  // "voltage" is what the device acknowledged, whatever the loop asked.
+  EXPECT_DOUBLE_EQ(j["voltage"].get<double>(), s.driver.output_v);
+  EXPECT_EQ(j["output"], s.driver.output_confirmed ? "confirmed" : "unconfirmed");
   EXPECT_DOUBLE_EQ(j["sample"]["x"].get<double>(), 1.25e-3);
   EXPECT_FALSE(j["sample"].contains("xdot"));  // not measured → omitted
   EXPECT_EQ(j["loop"]["cycles"], 12500);
@@ -80,7 +100,7 @@ TEST(Render, Status) {
 
   s.state = RunState::running;
   s.fault_reason.fill('\0');
-  const json k = json::parse(render_status(s, ServerInfo{"0.1.0", "sim", ""}));
+  const json k = json::parse(render_status(s, ServerInfo{"0.1.0", "sim", "", ""}));
   EXPECT_FALSE(k.contains("fault_reason"));
   EXPECT_FALSE(k.contains("config_file"));
 }
@@ -127,6 +147,144 @@ TEST(Render, EstimateWithoutTruthOmitsThem) {
   EXPECT_FALSE(j.contains("rel_error"));
   EXPECT_FALSE(j.contains("physical"));
   EXPECT_FALSE(j.contains("t"));
+}
+
+refine::RefinedView sample_refined() {
+  refine::RefinedView r;
+  r.valid = true;
+  r.fits = 4;
+  r.converged_fits = 3;
+  r.windows = 2;
+  r.interval_s = 10.0;
+  r.fitted_at_t = 12.0;
+  r.fitted_at_unix_ns = 1'795'422'600'123'456'789;  // 2026-11-23T08:30:00.123Z
+  r.duration_s = 0.5;
+  r.seed = refine::Seed::refined;
+  r.theta_hat = {1247.0, 0.8, 1813.0, 0.1, 0.0594059 * 1.5, 1.1001100};
+  r.sigma = {1.0, 0.001, 2.0, 1e-4, 1e-7, 2e-7};
+  r.t_begin = 2.0;
+  r.t_end = 12.0;
+  r.samples = 10001;
+  r.residual_rms = {1e-7, 1e-3};
+  r.noise_sigma = {0.9e-7, std::nan("")};
+  r.converged = true;
+  r.iterations = 6;
+  std::snprintf(r.message.data(), r.message.size(), "%s", "converged");
+  r.bias_tested = true;
+  r.paper_biased = {true, false};
+  r.bias_statistic = {400.0, 1.0};
+  r.bias_threshold = {18.47, 13.82};
+  return r;
+}
+
+TEST(Render, EstimateWithoutAFitRecommendsThePaperLawUnflagged) {
+  const PublishedState s = test::sample_state();
+  for (const json& j : {json::parse(render_estimate(s.estimate)),
+                        json::parse(render_estimate(s.estimate, nullptr, 12.5))}) {
+    EXPECT_EQ(j["best"], "paper");
+    EXPECT_EQ(j["paper_biased"]["mechanical"], false);
+    EXPECT_EQ(j["paper_biased"]["thermal"], false);
+    EXPECT_FALSE(j.contains("refined"));
+  }
+  const refine::RefinedView none;  // enabled, no fit finished yet
+  const json j = json::parse(render_estimate(s.estimate, &none, 12.5));
+  EXPECT_EQ(j["best"], "paper");
+  EXPECT_FALSE(j.contains("refined"));
+}
+
+TEST(Render, EstimateCarriesTheRefinedFit) {
+  const PublishedState s = test::sample_state();
+  const refine::RefinedView r = sample_refined();
+  const json j = json::parse(render_estimate(s.estimate, &r, 12.5));
+  EXPECT_EQ(j["best"], "refined");
+  EXPECT_EQ(j["paper_biased"]["mechanical"], true);
+  EXPECT_EQ(j["paper_biased"]["thermal"], false);
+  // The paper law's members are unchanged.
+  EXPECT_DOUBLE_EQ(j["theta_hat"][0].get<double>(), 1247.0 * 1.01);
+  const json& o = j["refined"];
+  ASSERT_EQ(o["theta_hat"].size(), 6U);
+  EXPECT_DOUBLE_EQ(o["theta_hat"][2].get<double>(), 1813.0);
+  EXPECT_DOUBLE_EQ(o["sigma"][5].get<double>(), 2e-7);
+  EXPECT_DOUBLE_EQ(o["window"]["t_begin"].get<double>(), 2.0);
+  EXPECT_DOUBLE_EQ(o["window"]["t_end"].get<double>(), 12.0);
+  EXPECT_EQ(o["window"]["samples"], 10001);
+  EXPECT_DOUBLE_EQ(o["fitted_at"]["t"].get<double>(), 12.0);
+  EXPECT_EQ(o["fitted_at"]["utc"], "2026-11-23T08:30:00.123Z");
+  EXPECT_EQ(o["fitted_at"]["unix_ns"], 1'795'422'600'123'456'789);
+  EXPECT_DOUBLE_EQ(o["residual_rms"]["x"].get<double>(), 1e-7);
+  EXPECT_DOUBLE_EQ(o["residual_rms"]["T"].get<double>(), 1e-3);
+  EXPECT_DOUBLE_EQ(o["noise_sigma"]["x"].get<double>(), 0.9e-7);
+  EXPECT_FALSE(o["noise_sigma"].contains("T")) << "non-finite: omitted";
+  EXPECT_EQ(o["converged"], true);
+  EXPECT_EQ(o["iterations"], 6);
+  EXPECT_EQ(o["message"], "converged");
+  EXPECT_EQ(o["seed"], "refined");
+  EXPECT_EQ(o["fits"], 4);
+  EXPECT_EQ(o["converged_fits"], 3);
+  EXPECT_EQ(o["windows"], 2);
+  EXPECT_DOUBLE_EQ(o["bias_test"]["mechanical"]["statistic"].get<double>(), 400.0);
+  EXPECT_DOUBLE_EQ(o["bias_test"]["thermal"]["threshold"].get<double>(), 13.82);
+  // The simulated driver's truth applies to the refined θ̂ too.
+  EXPECT_NEAR(o["rel_error"][0].get<double>(), 0.0, 1e-12);
+  EXPECT_NEAR(o["rel_error"][4].get<double>(), 0.5, 1e-12);
+  EXPECT_DOUBLE_EQ(o["theta_true"][4].get<double>(), 0.0594059);
+}
+
+TEST(Render, BestFallsBackToThePaperLawWhenTheFitIsStaleOrFailed) {
+  const PublishedState s = test::sample_state();
+  refine::RefinedView r = sample_refined();
+  EXPECT_EQ(json::parse(render_estimate(s.estimate, &r, 42.0))["best"], "refined");
+  EXPECT_EQ(json::parse(render_estimate(s.estimate, &r, 42.5))["best"], "paper");
+  r.converged = false;
+  const json j = json::parse(render_estimate(s.estimate, &r, 12.5));
+  EXPECT_EQ(j["best"], "paper");
+  EXPECT_EQ(j["refined"]["converged"], false);
+  EXPECT_EQ(j["paper_biased"]["mechanical"], true) << "held from the last converged fit";
+}
+
+TEST(Render, StatusCarriesTheRefinementCounters) {
+  PublishedState s = test::sample_state();
+  s.handoff_dropped = 3;
+  const refine::RefinedView r = sample_refined();
+  const json j = json::parse(render_status(s, ServerInfo{"0.1.0", "sim", "", ""}, &r));
+  EXPECT_EQ(j["refine"]["fits"], 4);
+  EXPECT_EQ(j["refine"]["converged_fits"], 3);
+  EXPECT_EQ(j["refine"]["windows"], 2);
+  EXPECT_EQ(j["refine"]["handoff_dropped"], 3);
+  EXPECT_DOUBLE_EQ(j["refine"]["last_fit_duration_s"].get<double>(), 0.5);
+  EXPECT_FALSE(json::parse(render_status(s, ServerInfo{"0.1.0", "sim", "", ""})).contains("refine"))
+      << "refinement disabled";
+}
+
+// With the loop's fine histogram, STATUS takes p50/p99/p99_9 from it (µs, within 0.4 %) and lists
+// its non-empty buckets so that a client can take the difference of two STATUS replies.
+TEST(Render, StatusLatenessFromTheFineHistogram) {
+  auto hist = std::make_unique<rt::LatencyHistogram>();
+  for (int i = 1; i <= 1000; ++i) hist->record(i * 1000);  // 1 µs .. 1000 µs
+  auto snap = std::make_unique<rt::LatencyHistogram::Snapshot>();
+  hist->snapshot(*snap);
+  PublishedState s = test::sample_state();
+  const json j =
+      json::parse(render_status(s, ServerInfo{"0.1.0", "sim", "", ""}, nullptr, snap.get()));
+  const json& lateness = j["loop"]["lateness_us"];
+  EXPECT_NEAR(lateness["p50"].get<double>(), 500.0, 500.0 / 256);
+  EXPECT_NEAR(lateness["p99"].get<double>(), 990.0, 990.0 / 256);
+  EXPECT_NEAR(lateness["p99_9"].get<double>(), 999.0, 999.0 / 256);
+  const json& fine = j["loop"]["lateness_histogram_ns"];
+  EXPECT_EQ(fine["count"], 1000);
+  EXPECT_EQ(fine["max"], 1000000);
+  std::uint64_t total = 0;
+  for (const json& b : fine["buckets"]) {
+    const auto lower = b[0].get<std::uint64_t>(), upper = b[1].get<std::uint64_t>();
+    EXPECT_LT(lower, upper);
+    EXPECT_LE(static_cast<double>(upper - lower), std::max(1.0, lower / 128.0));
+    total += b[2].get<std::uint64_t>();
+  }
+  EXPECT_EQ(total, 1000U);
+  // Without it: the coarse histogram's percentiles, no p99_9, no bucket list.
+  const json coarse = json::parse(render_status(s, ServerInfo{"0.1.0", "sim", "", ""}));
+  EXPECT_FALSE(coarse["loop"]["lateness_us"].contains("p99_9"));
+  EXPECT_FALSE(coarse["loop"].contains("lateness_histogram_ns"));
 }
 
 TEST(Render, StateNames) {

@@ -80,11 +80,17 @@ TEST(Request, Malformed) {
   expect_error(R"({"request":"reset","x":1})", "it takes no members");
 }
 
+// Bytes after a NUL used to be ignored by the parser ("status\0garbage" answered as status).
+TEST(Request, NulAnywhereIsAnError) {
+  expect_error(std::string("{\"request\":\"status\"}\0garbage", 28), "NUL byte at offset 20");
+  expect_error(std::string("{\"request\":\"sta\0tus\"}", 21), "NUL byte at offset 15");
+}
+
 TEST(Request, BinaryAndInvalidUtf8NeverCrash) {
   expect_error(std::string("{\"request\":\"st\xff\xfe\"}"), "malformed JSON");
   std::string garbage;
   for (int i = 0; i < 256; ++i) garbage.push_back(static_cast<char>(i));
-  expect_error(garbage, "malformed JSON");
+  expect_error(garbage, "malformed request: NUL byte at offset 0");
   // Deterministic pseudo-random bytes, including a few that start valid JSON.
   std::uint32_t x = 12345;
   for (int round = 0; round < 2000; ++round) {

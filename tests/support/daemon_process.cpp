@@ -299,8 +299,11 @@ DaemonProcess::~DaemonProcess() {
 
 void DaemonProcess::start() {
   if (pid_ > 0) kill_now();
-  pid_ = spawn({estimatord_path(), "--config", config_path_}, child_environment(options_.extra_env),
-               stderr_path_ + ".out", stderr_path_, true);
+  const std::string binary = options_.binary.empty() ? estimatord_path() : options_.binary;
+  std::vector<std::string> argv{binary, "--config", config_path_};
+  argv.insert(argv.end(), options_.extra_args.begin(), options_.extra_args.end());
+  pid_ =
+      spawn(argv, child_environment(options_.extra_env), stderr_path_ + ".out", stderr_path_, true);
   if (options_.wait_ready) wait_socket(Seconds(15));
 }
 

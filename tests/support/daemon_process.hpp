@@ -84,8 +84,10 @@ struct ProcessResult {
 ProcessResult run_process(const std::vector<std::string>& argv, Seconds timeout = Seconds(30));
 
 struct DaemonOptions {
-  std::vector<std::string> extra_env;  // "NAME=value", added to the child's environment
-  bool wait_ready = true;              // start() waits until the socket answers
+  std::vector<std::string> extra_env;   // "NAME=value", added to the child's environment
+  std::vector<std::string> extra_args;  // after --config FILE (e.g. "--log-level", "debug")
+  bool wait_ready = true;               // start() waits until the socket answers
+  std::string binary;                   // another build of the daemon (e.g. -alloccount); "" = ours
 };
 
 class DaemonProcess {

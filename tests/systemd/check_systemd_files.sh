@@ -18,7 +18,7 @@ else
   exe=/bin/true
 fi
 unit="$work/system/scp-estimatord.service"
-sed -e "s|@SCP_BINDIR@/scp-estimatord|$exe|" -e "s|@SCP_SYSCONFDIR@|/etc|" \
+sed -e "s|@SCP_SBINDIR@/scp-estimatord|$exe|" -e "s|@SCP_SYSCONFDIR@|/etc|" \
     "$src/scp-estimatord.service.in" >"$unit"
 if grep -n '@[A-Z_]*@' "$unit"; then fail "unsubstituted @VARIABLE@ left in the unit"; fi
 
@@ -34,10 +34,12 @@ fi
 # 3. Directives the daemon depends on (a regression here breaks real-time operation or devices).
 need() { grep -qE "^$1" "$unit" || fail "unit lacks '$1'"; }
 need 'Type=notify$'
+need 'Documentation=man:scp-estimatord\(8\)'
 need 'WatchdogSec=2s$'
 need 'LimitRTPRIO=[1-9]'
 need 'LimitMEMLOCK=infinity$'
 need 'RestrictRealtime=no$'
+need 'RestartPreventExitStatus=78 69$'  # a config error (78), a device absent past driver.start_timeout_s (69): no restart loop
 need 'RestrictAddressFamilies=.*AF_CAN'
 need 'RestrictAddressFamilies=.*AF_INET6'
 need 'DeviceAllow=char-ttyUSB rw$'
@@ -64,6 +66,47 @@ else
   if awk -v s="$score" -v m="$max_exposure" 'BEGIN { exit !(s > m) }'; then
     fail "exposure $score is above $max_exposure; the remaining findings:"
     echo "$sec" | grep '✗'
+  fi
+fi
+
+# 6. The template for several actuators (scp-estimatord@NAME.service): verified as an instance,
+# the same directives, per-instance config/socket/state, and an exposure no higher than the plain
+# unit's.
+template="$work/system/scp-estimatord@.service"
+sed -e "s|@SCP_SBINDIR@/scp-estimatord|$exe|" -e "s|@SCP_SYSCONFDIR@|/etc|" \
+    "$src/scp-estimatord@.service.in" >"$template"
+if grep -n '@[A-Z_]*@' "$template"; then fail "unsubstituted @VARIABLE@ left in the template"; fi
+instance="$work/system/scp-estimatord@bench-a.service"
+ln -sf "scp-estimatord@.service" "$instance"
+out=$(systemd-analyze verify --man=no "$instance" 2>&1)
+rc=$?
+if [[ $rc -ne 0 || -n "$out" ]]; then
+  fail "systemd-analyze verify of the template instance (rc=$rc):"
+  echo "$out"
+fi
+tneed() { grep -qE "^$1" "$template" || fail "template lacks '$1'"; }
+tneed 'ExecStart=.* --config /etc/scp-estimator/%i\.yaml --instance %i$'
+tneed 'StateDirectory=scp-estimator/%i$'
+tneed 'RuntimeDirectoryPreserve=yes$'  # one instance stopping must not remove the others' sockets
+tneed 'Type=notify$'
+tneed 'WatchdogSec=2s$'
+tneed 'LimitMEMLOCK=infinity$'
+tneed 'RestartPreventExitStatus=78 69$'
+# Everything but the instance lines is the plain unit's: hardening cannot drift between them.
+strip() { grep -vE '^(#|Description=|ExecStart=|StateDirectory=|RuntimeDirectoryPreserve=)' "$1"; }
+if ! diff <(strip "$unit") <(strip "$template") >/dev/null; then
+  fail "the template's directives differ from the plain unit's:"
+  diff <(strip "$unit") <(strip "$template")
+fi
+tsec=$(systemd-analyze security --offline=yes "$instance" 2>&1)
+tscore=$(echo "$tsec" | sed -n 's/.*Overall exposure level for [^:]*: \([0-9.]*\).*/\1/p')
+if [[ -z "$tscore" || -z "${score:-}" ]]; then
+  fail "could not read the template's exposure level:"
+  echo "$tsec" | tail -5
+else
+  echo "template instance exposure: $tscore (plain unit $score)"
+  if awk -v s="$tscore" -v m="$score" 'BEGIN { exit !(s > m) }'; then
+    fail "the template's exposure $tscore is above the plain unit's $score"
   fi
 fi
 

@@ -1,0 +1,113 @@
+#pragma once
+// A consistent estimate of θ beside the paper's law: output-error (grey-box prediction-error)
+// fitting of the continuous-time SCP model over a window of recorded samples.
+//
+//   m ẍ + b ẋ + α1 T̄ ẋ + k x = −α2 T̄        Cth dT̄/dt = −λ T̄ + V²/R
+//
+// The model is simulated from the measured voltage alone (exact discretization per sample
+// interval), so the noise on x and T̄ enters only the residuals, never the regressors: unlike least
+// squares on filtered noisy regressors (errors-in-variables, biased toward zero), the fit is
+// consistent, and (JᵀWJ)⁻¹ is its Cramér–Rao covariance. See docs/numerics.md.
+//
+// A pure library: no threads, no clock, no I/O, no logging. The daemon owns the worker thread that
+// hands it a window (daemon/refine/).
+
+#include <Eigen/Core>
+#include <array>
+#include <atomic>
+#include <cstddef>
+#include <span>
+
+#include "estimator/types.hpp"
+
+namespace scp::refine {
+
+using estimator::Vector2;
+using estimator::Vector6;
+using Vector3 = Eigen::Vector3d;
+using Matrix6 = Eigen::Matrix<double, 6, 6>;
+
+// One recorded sample. `voltage` is the voltage the plant saw from `voltage_since` until `t`; from
+// the previous sample's t until `voltage_since` it saw the previous sample's voltage. A DAC that
+// switches exactly at sample instants has voltage_since ≤ the previous t (the usual case: set it
+// to the previous t or to −∞). A link whose write lands mid-cycle sets the instant it landed.
+struct WindowSample {
+  double t = 0.0;                 // s, when x and T were sampled
+  double x = 0.0;                 // m
+  double tbar = 0.0;              // °C above ambient
+  double voltage = 0.0;           // V
+  double voltage_since = -1e300;  // s
+};
+
+// The model's state at the window's first sample: x, ẋ, T̄.
+using InitialState = Vector3;
+
+struct FitSettings {
+  int max_iterations = 100;
+  // Parameters held at the start value (the daemon's `estimator.known`): they leave the fit and
+  // get σ = 0.
+  std::array<bool, 6> known{};
+  // Residual autocorrelation lags of the Newey–West (Bartlett) covariance; 0 = automatic: the
+  // larger of floor(4·(N/100)^(2/9)) and Andrews' AR(1) plug-in from the residuals' lag-one
+  // correlation (refine/covariance.hpp). Coloured sensor noise makes the white-noise (JᵀWJ)⁻¹
+  // too optimistic.
+  int hac_lags = 0;
+  // Bounds on the work of one fit, whatever the data: residual passes over the window (each
+  // Levenberg–Marquardt trial, each point of the scale search), and model sub-steps in all of them
+  // together (2 per sample and pass on average: a stiff θ costs more sub-steps per sample, see
+  // refine/model_simulator.hpp). A fit that runs out returns converged = false.
+  int max_evaluations = 400;
+  // Polled between passes and every kCancelStride samples inside one (refine/residual_pass.hpp):
+  // when it reads true the fit returns converged = false, "cancelled", within about a
+  // millisecond of simulation. The daemon's worker points it at its stop flag.
+  const std::atomic<bool>* cancel = nullptr;
+};
+
+struct FitResult {
+  bool converged = false;  // the solver met its tolerance and the model is stable at θ
+  int iterations = 0;      // solver iterations over all stages, plus the scale search's evaluations
+  int evaluations = 0;     // residual passes over the window (FitSettings::max_evaluations)
+  const char* message = "";  // static string: why it stopped (for logs and the protocol)
+  Vector6 theta = Vector6::Zero();
+  Vector6 sigma = Vector6::Zero();       // sqrt(diag(covariance)), 0 for known parameters
+  Matrix6 covariance = Matrix6::Zero();  // Newey–West (HAC): honest for coloured residuals too
+  // (JᵀWJ)⁻¹ with W from the estimated noise variances: right for white sensor noise only.
+  Matrix6 covariance_white = Matrix6::Zero();
+  Vector6 sigma_white = Vector6::Zero();
+  int hac_lags = 0;  // the Newey–West lags used (FitSettings::hac_lags or the automatic choice)
+  InitialState initial_state = InitialState::Zero();
+  Vector2 residual_rms = Vector2::Zero();  // x in m, T̄ in °C
+  Vector2 noise_sigma = Vector2::Zero();   // estimated sensor noise standard deviation, same units
+  double t_begin = 0.0;                    // s, first and last sample of the window fitted
+  double t_end = 0.0;
+  std::size_t samples = 0;
+};
+
+// Fits θ, the initial state and the noise variances to `window` (at least 3 samples, t strictly
+// increasing), starting from `theta_start`. Never throws; a window it cannot use returns
+// converged = false with the reason in `message`.
+FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
+              const FitSettings& settings = {});
+
+// Cramér–Rao bound of θ for this input (t, voltage, voltage_since of `window`; x and T̄ ignored),
+// the true θ and initial state, and white sensor noise of standard deviation noise_sigma (x in m,
+// T̄ in °C): the covariance an efficient unbiased estimator reaches. Known parameters as in fit();
+// the initial state is a nuisance parameter (estimated alongside, its uncertainty included). A
+// channel with noise_sigma ≤ 0 is taken as not measured.
+Matrix6 cramer_rao_bound(std::span<const WindowSample> window, const Vector6& theta,
+                         const InitialState& initial, const Vector2& noise_sigma,
+                         const std::array<bool, 6>& known = {});
+
+// Per block (0 mechanical θ1..θ4, 1 thermal θ5, θ6): the Wald statistic of another estimate θ̂_o
+// with claimed standard deviations σ_o against this fit, dᵀ(C_fit + diag(σ_o²))⁻¹d with d = θ̂_o −
+// θ̂_fit over the block's free parameters, and its χ² threshold at 0.999 for that many degrees of
+// freedom. An estimate whose statistic exceeds the threshold claims a σ its bias does not allow.
+struct BiasTest {
+  Vector2 statistic = Vector2::Zero();
+  Vector2 threshold = Vector2::Zero();
+  std::array<bool, 2> biased{};
+};
+BiasTest test_against(const FitResult& fit, const Vector6& other_theta, const Vector6& other_sigma,
+                      const std::array<bool, 6>& known = {});
+
+}  // namespace scp::refine

@@ -1,0 +1,153 @@
+#pragma once
+// Levenberg–Marquardt on streamed normal equations (refine/residual_pass.hpp): each evaluation
+// returns the cost Σ w r², N = JᵀWJ and g = JᵀWr for the coordinates z being fitted, so the
+// solver never sees a residual vector or a Jacobian. Marquardt's diagonal scaling (N + μ·diag N)
+// makes the step independent of the parameters' units (θ spans 0.06 to 1813, x0 is 1e-3 m), and
+// the linear solve is done on the Jacobi-scaled matrix to keep its condition number down.
+//
+// Why not Eigen's unsupported LevenbergMarquardt (MINPACK lmder) or Ceres: both want the
+// residual vector and its Jacobian (or per-residual blocks). Measured on the 300 s window at
+// 1 kHz (bench/bench_refine.cpp, BM_EigenLevenbergMarquardt, 2 cores at load ~8): lmder on the
+// joint problem alone, started 1 % off, took 3 function and 2 Jacobian evaluations, 1.17 s CPU,
+// with a 600002 × 9 fjac of 43 MB (119 MB peak RSS); this streaming solver's whole staged fit
+// (thermal, scale search, mechanical, joint with σ̂² re-estimated, Newey–West pass) from the
+// paper law's biased start took 0.91 s CPU in ~9×9 matrices, and reached the same θ̂. lmder's
+// stopping rules (relative ftol/xtol) also know nothing of the noise level, and the per-sample
+// scores the Newey–West covariance needs would be one more pass anyway. Eigen's storage-saving
+// lmstr streams Jacobian rows but still keeps the 2N residual vector and pays a Givens QR update
+// per row; not measured.
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <cmath>
+#include <limits>
+
+namespace scp::refine {
+
+// What `evaluate(z)` returns: at least these members (the caller may add its own).
+//   bool finite;  double cost;
+//   const char* stop;          // non-null: give up now with this message (cancelled, budget spent)
+//   Eigen::MatrixXd normal;    // JᵀWJ in z
+//   Eigen::VectorXd gradient;  // JᵀWr in z (the cost decreases along +gradient)
+template <class Evaluation>
+struct LmOutcome {
+  Eigen::VectorXd z;
+  Evaluation at_z;
+  int iterations = 0;
+  bool converged = false;
+  const char* message = "";
+};
+
+struct LmSettings {
+  int max_iterations = 100;
+  // Converged when the Gauss–Newton step would lower the cost by less than this fraction of the
+  // cost per observation: with weights 1/σ², a step below 1e-3 σ of every parameter.
+  double decrement_tolerance = 1e-6;
+  double observations = 1.0;  // weighted observations in the cost (to normalize it)
+  // A cost this small is the residual of rounding (noise-free data): converged.
+  double cost_floor = 0.0;
+};
+
+// `evaluate(z)` returns an Evaluation; `z` is the start.
+template <class Evaluation, class Evaluate>
+LmOutcome<Evaluation> levenberg_marquardt(Evaluate&& evaluate, Eigen::VectorXd z,
+                                          const LmSettings& settings) {
+  LmOutcome<Evaluation> out;
+  out.at_z = evaluate(z);
+  out.z = z;
+  if (out.at_z.stop != nullptr) {
+    out.message = out.at_z.stop;
+    return out;
+  }
+  if (!out.at_z.finite) {
+    out.message = "model not finite at the start";
+    return out;
+  }
+  const Eigen::Index n = z.size();
+  // μ starts small: the scaled normal matrix of the mechanical block has an eigenvalue ~1e-10
+  // (the common scale of θ1..θ4), and a μ above it would crush every step along it.
+  double mu = 1e-10, nu = 2.0;
+  for (int it = 0; it < settings.max_iterations; ++it) {
+    out.iterations = it + 1;
+    const Evaluation& cur = out.at_z;
+    Eigen::VectorXd d = cur.normal.diagonal().cwiseMax(0.0).cwiseSqrt();
+    for (Eigen::Index i = 0; i < n; ++i)
+      if (!(d[i] > 0.0) || !std::isfinite(d[i])) d[i] = 1.0;
+    const Eigen::MatrixXd scaled =
+        d.cwiseInverse().asDiagonal() * cur.normal * d.cwiseInverse().asDiagonal();
+    const Eigen::VectorXd scaled_gradient = cur.gradient.cwiseQuotient(d);
+    // Gauss–Newton decrement gᵀN⁻¹g: the cost reduction a full step would bring.
+    Eigen::LDLT<Eigen::MatrixXd> gn(scaled);
+    const double decrement =
+        gn.info() == Eigen::Success ? scaled_gradient.dot(gn.solve(scaled_gradient)) : 1e300;
+    const double cost_per_observation = cur.cost / std::max(1.0, settings.observations);
+    if (cur.cost <= settings.cost_floor) {
+      out.converged = true;
+      out.message = "converged (residuals at rounding level)";
+      return out;
+    }
+    if (std::isfinite(decrement) && decrement >= 0.0 &&
+        decrement <= settings.decrement_tolerance * cost_per_observation) {
+      out.converged = true;
+      out.message = "converged";
+      return out;
+    }
+    Eigen::MatrixXd damped = scaled;
+    damped.diagonal().array() += mu;
+    Eigen::LLT<Eigen::MatrixXd> llt(damped);
+    if (llt.info() != Eigen::Success) {
+      mu *= nu;
+      nu *= 2.0;
+      continue;
+    }
+    const Eigen::VectorXd step_scaled = llt.solve(scaled_gradient);
+    const Eigen::VectorXd step = step_scaled.cwiseQuotient(d);
+    // Predicted reduction of the linearized cost: 2δᵀg − δᵀNδ.
+    const double predicted =
+        2.0 * step_scaled.dot(scaled_gradient) - step_scaled.dot(scaled * step_scaled);
+    const Eigen::VectorXd z_new = out.z + step;
+    Evaluation trial = evaluate(z_new);
+    if (trial.stop != nullptr) {
+      out.message = trial.stop;
+      return out;
+    }
+    // A step to a non-finite z, a non-finite cost or an unsimulatable model is a failed step.
+    if (trial.finite && std::isfinite(trial.cost) && z_new.allFinite() && trial.cost <= cur.cost) {
+      const double cost_before = cur.cost;
+      const double actual = cost_before - trial.cost;
+      const double rho = predicted > 0.0 ? actual / predicted : 0.0;
+      // Nielsen's update, but a step the linear model predicted well shrinks μ tenfold.
+      mu *= rho > 0.75 ? 0.1 : std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3));
+      mu = std::max(mu, 1e-15);
+      nu = 2.0;
+      out.z = z_new;
+      out.at_z = std::move(trial);
+      // Stalled at the rounding floor: a further step cannot be told from zero.
+      if (actual <= 1e-15 * cost_before) {
+        out.converged = true;
+        out.message = "converged (cost at rounding level)";
+        return out;
+      }
+    } else {
+      mu *= nu;
+      nu *= 2.0;
+      // The linear model promises less than the cost's own rounding can show: done.
+      if (predicted <= 1e-12 * cur.cost) {
+        out.converged = true;
+        out.message = "converged (no decrease at rounding level)";
+        return out;
+      }
+      if (mu > 1e20) {
+        // Not even a tiny gradient step lowers the cost: the minimum to rounding precision, or
+        // a model that cannot be simulated nearby.
+        out.converged = std::isfinite(decrement) && decrement <= 1e-2 * cost_per_observation;
+        out.message = out.converged ? "converged (no further decrease)" : "stalled: no decrease";
+        return out;
+      }
+    }
+  }
+  out.message = "iteration limit";
+  return out;
+}
+
+}  // namespace scp::refine

@@ -1,0 +1,106 @@
+#include "refine/model_simulator.hpp"
+
+#include <cmath>
+
+namespace scp::refine {
+
+int pieces_between(const WindowSample& prev, const WindowSample& cur, Piece out[2]) noexcept {
+  const double dt = cur.t - prev.t;
+  if (!(dt > 0.0)) return 0;
+  const double u_prev = prev.voltage * prev.voltage;
+  const double u_cur = cur.voltage * cur.voltage;
+  const double since = cur.voltage_since;
+  if (since > prev.t && since < cur.t) {
+    out[0] = {since - prev.t, u_prev};
+    out[1] = {cur.t - since, u_cur};
+    return 2;
+  }
+  // Not yet landed at the sample instant: the whole interval saw the previous voltage.
+  out[0] = {dt, since >= cur.t ? u_prev : u_cur};
+  return 1;
+}
+
+int substeps(const Vector6& theta, double tbar, double tau) noexcept {
+  const double rho = std::abs(theta[0] + theta[1] * tbar) + std::sqrt(std::abs(theta[2]));
+  const double n = std::ceil(tau * rho / kMaxStiffnessPerSubstep);
+  if (!(n > 1.0)) return 1;
+  return n < 1e5 ? static_cast<int>(n) : 100000;
+}
+
+ThermalPiece thermal_piece(double theta5, double tau) noexcept {
+  const double z = -theta5 * tau;
+  const Phi12 p = phi12(z);
+  ThermalPiece tp;
+  tp.decay = std::exp(z);
+  tp.gain = tau * p.phi1;
+  tp.mean_of_start = p.phi1;
+  tp.mean_of_input = tau * p.phi2;
+  tp.dgain_dtheta5 = -tau * tau * (p.phi1 - p.phi2);
+  return tp;
+}
+
+ThermalPiece advance_thermal_piece(const Vector6& theta, const Piece& piece, ModelState& state,
+                                   ThermalCache& cache) noexcept {
+  const ThermalPiece& tp = cache.get(theta[4], piece.tau);
+  state.tbar = tp.decay * state.tbar + tp.gain * theta[5] * piece.u;
+  return tp;
+}
+
+MechanicalPiece advance_piece(const Vector6& theta, const Piece& piece, ModelState& s,
+                              ThermalCache& cache) noexcept {
+  MechanicalPiece mp;
+  const double tau = piece.tau;
+  const double input = theta[5] * piece.u;
+  const double ta = s.tbar;
+  mp.thermal = cache.get(theta[4], tau);
+  const ThermalPiece& tp = mp.thermal;
+  const double tb = tp.decay * ta + tp.gain * input;
+  const double tavg = tp.mean_of_start * ta + tp.mean_of_input * input;
+  // T̄ is exponential inside the piece; its slope at the middle differs from the chord's by
+  // O(τ²), which enters Ω only at O(τ⁵).
+  const double tdot = (tb - ta) / tau;
+  const double th1 = theta[0], th2 = theta[1], th3 = theta[2], th4 = theta[3];
+  mp.tau = tau;
+  mp.c0 = th1 + th2 * tavg;
+  mp.q = th2 * tdot;
+  const double k = tau * tau * tau / 12.0;
+  // [A', Ā] = q·[[0, 1], [θ3, 0]] with A' = [[0, 0], [0, −q]].
+  Matrix2 omega;
+  omega << 0.0, tau + k * mp.q, -tau * th3 + k * mp.q * th3, -tau * mp.c0;
+  // f̄ = [0, −θ4 T̄avg], f' = [0, −θ4 dT̄/dt]; A'f = [0, −q·f1].
+  const double fbar = -th4 * tavg, fslope = -th4 * tdot;
+  const double w1 = tau * fbar - k * mp.q * fbar;
+  const double w2 = tau * fslope - k * mp.q * fslope;
+  mp.ef = exp_phi(omega);
+  const Matrix2& e = mp.ef.exp;
+  const Matrix2& f1 = mp.ef.phi1;
+  const Matrix2& f2 = mp.ef.phi2;
+  // Only the second component of w1, w2 is non-zero.
+  const double a = w1 - 0.5 * tau * w2, b = tau * w2;
+  const double x = e(0, 0) * s.x + e(0, 1) * s.xdot + f1(0, 1) * a + f2(0, 1) * b;
+  const double v = e(1, 0) * s.x + e(1, 1) * s.xdot + f1(1, 1) * a + f2(1, 1) * b;
+  s.x = x;
+  s.xdot = v;
+  s.tbar = tb;
+  return mp;
+}
+
+void simulate(std::span<const WindowSample> window, const Vector6& theta,
+              const InitialState& initial, std::span<ModelState> out) noexcept {
+  if (window.empty() || out.size() < window.size()) return;
+  ModelState s{initial[0], initial[1], initial[2]};
+  out[0] = s;
+  Piece pieces[2];
+  ThermalCache cache;
+  for (std::size_t k = 1; k < window.size(); ++k) {
+    const int n = pieces_between(window[k - 1], window[k], pieces);
+    for (int i = 0; i < n; ++i) {
+      const int m = substeps(theta, s.tbar, pieces[i].tau);
+      const Piece sub{pieces[i].tau / m, pieces[i].u};
+      for (int j = 0; j < m; ++j) advance_piece(theta, sub, s, cache);
+    }
+    out[k] = s;
+  }
+}
+
+}  // namespace scp::refine

@@ -1,0 +1,106 @@
+#pragma once
+// The model of refine/fit.hpp simulated from the recorded voltage, one sample interval at a time.
+//
+// Thermal block, dT̄/dt = −θ5 T̄ + θ6 V²: exact for V² held over a piece (the interval is cut at
+// `voltage_since` when the new voltage landed inside it, so each piece has one V²).
+// Mechanical block, d[x, ẋ]/dt = A(t)[x, ẋ] + f(t) with A = [[0, 1], [−θ3, −(θ1 + θ2 T̄)]] and
+// f = [0, −θ4 T̄]: linear and time-varying only through T̄, which is smooth inside a piece (time
+// constant 1/θ5 ≈ 17 s for the paper's actuator). Over a piece σ ∈ [0, τ], T̄ is replaced by its
+// exact mean T̄avg plus its chord slope T̄'·(σ − τ/2) (the rest is O(θ5·T̄'·τ²), 1e-13 relative),
+// which makes the forcing linear in σ and the system matrix A(σ) = Ā + A'·(σ − τ/2). The
+// fourth-order Magnus expansion of the system augmented with [1, σ − τ/2] then gives, with
+//   Ω  = τĀ + τ³/12·[A', Ā],   w1 = τf̄ + τ³/12·A'f̄,   w2 = τf' + τ³/12·A'f',
+//   [x, ẋ](τ) = e^Ω [x, ẋ](0) + φ1(Ω)·(w1 − τ/2·w2) + τ·φ2(Ω)·w2:
+// exact for a constant damping and a linear forcing (whatever τ·|A|, which is 1.25 for the
+// paper's fast pole at 1 ms), and fourth order in the damping's change with T̄ (θ2 = α1/m).
+// Measured against the project's RK4 plant (20 sub-steps/ms, itself 7e-14 from 400 sub-steps)
+// on the paper's 300 s experiment: see tests/refine/test_model_simulator.cpp for the figures of
+// this scheme and of the simpler ones it replaced. Stable for any step: e^Ω is exact for the
+// frozen system, so a 10 s gap in the record is one step, not 10⁴.
+
+#include <Eigen/Core>
+#include <span>
+
+#include "refine/fit.hpp"
+#include "refine/matrix_functions.hpp"
+
+namespace scp::refine {
+
+// Indices into the full parameter vector p = [θ1..θ6, x0, ẋ0, T̄0] the fit works on.
+inline constexpr int kParams = 9;
+inline constexpr int kX0 = 6, kXdot0 = 7, kTbar0 = 8;
+using Vector9 = Eigen::Matrix<double, kParams, 1>;
+using Matrix9 = Eigen::Matrix<double, kParams, kParams>;
+
+struct ModelState {
+  double x = 0.0, xdot = 0.0, tbar = 0.0;
+};
+
+// A stretch of an interval over which V² is constant.
+struct Piece {
+  double tau = 0.0;  // s
+  double u = 0.0;    // V²
+};
+
+// The pieces from `prev` to `cur` (see WindowSample): one, or two when cur.voltage_since falls
+// strictly inside (prev.t, cur.t). Returns 0 when cur.t ≤ prev.t.
+int pieces_between(const WindowSample& prev, const WindowSample& cur, Piece out[2]) noexcept;
+
+// Exact coefficients of the thermal block over a piece of length τ:
+//   T̄(τ) = decay·T̄(0) + gain·θ6·u,  mean of T̄ = mean_of_start·T̄(0) + mean_of_input·θ6·u.
+struct ThermalPiece {
+  double decay = 1.0;          // e^{−θ5 τ}
+  double gain = 0.0;           // τ·φ1(−θ5 τ)
+  double mean_of_start = 1.0;  // φ1(−θ5 τ)
+  double mean_of_input = 0.0;  // τ·φ2(−θ5 τ)
+  double dgain_dtheta5 = 0.0;  // −τ²·(φ1 − φ2)(−θ5 τ), for the sensitivities
+};
+ThermalPiece thermal_piece(double theta5, double tau) noexcept;
+
+// Sub-pieces a piece is cut into so that τ·ρ(A) ≤ 1.5, ρ(A) ≤ |θ1 + θ2 T̄| + √|θ3| (the paper's
+// 1 ms sample: 1.37, one sub-piece). The Magnus truncation grows like τ⁵: through a 10 ms link
+// uncut pieces leave 3e-10 of max|x|, cut ones 4e-13 (tests/refine/test_model_simulator.cpp).
+// Capped at 10⁵ (a gap of minutes in a record).
+int substeps(const Vector6& theta, double tbar, double tau) noexcept;
+inline constexpr double kMaxStiffnessPerSubstep = 1.5;  // the τ·ρ(A) bound of substeps()
+
+// The last ThermalPiece computed: a uniformly sampled window has one τ, so one exp per pass.
+class ThermalCache {
+ public:
+  const ThermalPiece& get(double theta5, double tau) noexcept {
+    if (theta5 != theta5_ || tau != tau_) {
+      piece_ = thermal_piece(theta5, tau);
+      theta5_ = theta5;
+      tau_ = tau;
+    }
+    return piece_;
+  }
+
+ private:
+  double theta5_ = -1.0, tau_ = -1.0;  // τ > 0 always: never a false hit
+  ThermalPiece piece_;
+};
+
+// What one mechanical step used, kept for the sensitivities that ride on it.
+struct MechanicalPiece {
+  ExpPhi ef;         // e^Ω, φ1(Ω), φ2(Ω)
+  double tau = 0.0;  // s
+  double c0 = 0.0;   // θ1 + θ2·T̄avg: the damping at the mean temperature
+  double q = 0.0;    // θ2·dT̄/dt: how fast the damping changes over the piece
+  ThermalPiece thermal;
+};
+
+// Advances `state` over one (sub-)piece with parameters θ.
+MechanicalPiece advance_piece(const Vector6& theta, const Piece& piece, ModelState& state,
+                              ThermalCache& cache) noexcept;
+
+// Advances `state` over one piece of the thermal block only (x, ẋ untouched).
+ThermalPiece advance_thermal_piece(const Vector6& theta, const Piece& piece, ModelState& state,
+                                   ThermalCache& cache) noexcept;
+
+// The model's outputs at each sample of `window` (x and T̄; ẋ for tests), from `initial` at the
+// first sample. `out` must hold window.size() states.
+void simulate(std::span<const WindowSample> window, const Vector6& theta,
+              const InitialState& initial, std::span<ModelState> out) noexcept;
+
+}  // namespace scp::refine

@@ -1,0 +1,159 @@
+#include "refine/residual_pass.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <vector>
+
+#include "refine/sensitivities.hpp"
+
+namespace scp::refine {
+
+namespace {
+
+// Overlapping batch means: Σ over windows of B consecutive scores of (Σ s)(Σ s)ᵀ/B equals the
+// Bartlett-weighted sum of the score's autocovariances with bandwidth B (Newey–West), at O(81) per
+// sample whatever B is.
+class LongRunAccumulator {
+ public:
+  explicit LongRunAccumulator(int bandwidth)
+      : bandwidth_(std::max(1, bandwidth)), ring_(static_cast<std::size_t>(bandwidth_)) {}
+
+  void add(const Vector9& score) {
+    Vector9& slot = ring_[static_cast<std::size_t>(count_ % bandwidth_)];
+    if (count_ >= bandwidth_) window_sum_ -= slot;
+    slot = score;
+    window_sum_ += score;
+    ++count_;
+    if (count_ >= bandwidth_) {
+      sum_.noalias() += window_sum_ * window_sum_.transpose();
+      ++windows_;
+    }
+  }
+
+  // Scaled to the N samples (the N − B + 1 full windows stand for all N).
+  Matrix9 result() const {
+    if (windows_ == 0) return Matrix9::Zero();
+    return sum_ * (static_cast<double>(count_) /
+                   (static_cast<double>(windows_) * static_cast<double>(bandwidth_)));
+  }
+
+ private:
+  long bandwidth_;
+  std::vector<Vector9> ring_;
+  Vector9 window_sum_ = Vector9::Zero();
+  Matrix9 sum_ = Matrix9::Zero();
+  long count_ = 0;
+  long windows_ = 0;
+};
+
+}  // namespace
+
+namespace {
+
+// The residual bookkeeping shared by both passes.
+struct ResidualSums {
+  PassResult& r;
+  double wx, wt;
+  double prev_rx = 0.0, prev_rt = 0.0;
+
+  void add(std::size_t k, const WindowSample& w, const ModelState& s, double& rx, double& rt) {
+    rx = w.x - s.x;
+    rt = w.tbar - s.tbar;
+    r.tbar_min = std::min(r.tbar_min, s.tbar);
+    r.tbar_max = std::max(r.tbar_max, s.tbar);
+    r.cost += wx * rx * rx + wt * rt * rt;
+    r.rss[0] += rx * rx;
+    r.rss[1] += rt * rt;
+    if (k > 0) {
+      r.lag1[0] += rx * prev_rx;
+      r.lag1[1] += rt * prev_rt;
+    }
+    prev_rx = rx;
+    prev_rt = rt;
+  }
+};
+
+}  // namespace
+
+PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
+                         const PassSettings& settings) {
+  PassResult r;
+  if (window.empty()) return r;
+  const Vector6 theta = p.head<6>();
+  const InitialState initial(p[kX0], p[kXdot0], p[kTbar0]);
+  const double wx = settings.thermal_only ? 0.0 : settings.weight[0];
+  const double wt = settings.weight[1];
+  ResidualSums sums{r, wx, wt};
+  r.tbar_min = r.tbar_max = initial[2];
+  double rx = 0.0, rt = 0.0;
+  // Gives up on the pass: cancelled by the caller, over the sub-step budget, or a state that has
+  // left the finite numbers (the rest of the window cannot bring it back).
+  auto give_up = [&](std::size_t k, long substeps, const ModelState& s) {
+    if (settings.cancel != nullptr && k % kCancelStride == 0 &&
+        settings.cancel->load(std::memory_order_relaxed)) {
+      r.cancelled = true;
+      return true;
+    }
+    if (settings.max_substeps > 0 && substeps > settings.max_substeps) {
+      r.too_stiff = true;
+      return true;
+    }
+    return !std::isfinite(s.x) || !std::isfinite(s.xdot) || !std::isfinite(s.tbar);
+  };
+  bool stopped = false;
+  if (!settings.jacobian) {
+    // Cost only: the state alone, about three times cheaper than with nine sensitivities.
+    ModelState s{initial[0], initial[1], initial[2]};
+    Piece pieces[2];
+    ThermalCache cache;
+    for (std::size_t k = 0; k < window.size(); ++k) {
+      if (k > 0) {
+        const int n = pieces_between(window[k - 1], window[k], pieces);
+        for (int i = 0; i < n; ++i) {
+          if (settings.thermal_only) {
+            advance_thermal_piece(theta, pieces[i], s, cache);
+            continue;
+          }
+          const int m = substeps(theta, s.tbar, pieces[i].tau);
+          const Piece sub{pieces[i].tau / m, pieces[i].u};
+          r.substeps += m;
+          for (int j = 0; j < m; ++j) advance_piece(theta, sub, s, cache);
+        }
+      }
+      if (give_up(k, r.substeps, s)) {
+        stopped = true;
+        break;
+      }
+      sums.add(k, window[k], s, rx, rt);
+    }
+  } else {
+    SensitivitySimulator sim(theta, initial, settings.thermal_only);
+    std::unique_ptr<LongRunAccumulator> hac;
+    if (settings.hac_bandwidth > 0)
+      hac = std::make_unique<LongRunAccumulator>(settings.hac_bandwidth);
+    for (std::size_t k = 0; k < window.size(); ++k) {
+      if (k > 0) sim.advance(window[k - 1], window[k]);
+      if (give_up(k, sim.substeps_taken(), sim.state())) {
+        stopped = true;
+        break;
+      }
+      sums.add(k, window[k], sim.state(), rx, rt);
+      const Vector9& jx = sim.dx();
+      const Vector9& jt = sim.dtbar();
+      if (wx > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, wx);
+      if (wt > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jt, wt);
+      const Vector9 score = wx * rx * jx + wt * rt * jt;
+      r.jtwr += score;
+      if (hac) hac->add(score);
+    }
+    r.jtwj = r.jtwj.selfadjointView<Eigen::Upper>();
+    if (hac) r.long_run = hac->result();
+    r.substeps = sim.substeps_taken();
+  }
+  r.samples = window.size();
+  r.finite = !stopped && std::isfinite(r.cost) && r.jtwj.allFinite() && r.jtwr.allFinite();
+  return r;
+}
+
+}  // namespace scp::refine

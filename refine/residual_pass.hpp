@@ -1,0 +1,53 @@
+#pragma once
+// One pass over the window at a parameter vector p: the weighted residuals and, optionally, the
+// normal equations of Gauss–Newton accumulated sample by sample. Streaming on purpose: JᵀWJ (9×9)
+// and JᵀWr (9) are summed as the simulation runs, so memory does not grow with the window (an
+// N×9 Jacobian of a 300 s window at 1 kHz, two outputs, would be 43 MB).
+
+#include <array>
+#include <atomic>
+#include <span>
+
+#include "refine/model_simulator.hpp"
+
+namespace scp::refine {
+
+struct PassSettings {
+  // 1/σ² for x and T̄; 0 leaves that channel out of the fit.
+  std::array<double, 2> weight{1.0, 1.0};
+  bool jacobian = true;
+  // Simulate T̄ only (the thermal stage: θ1..θ4, x0, ẋ0 play no part).
+  bool thermal_only = false;
+  // > 0: also accumulate the Bartlett long-run covariance of the score with this bandwidth
+  // (lags + 1), for the Newey–West covariance.
+  int hac_bandwidth = 0;
+  // > 0: give up (finite = false, too_stiff = true) once the simulation has taken more sub-steps
+  // than this: a model stiffer than the caller can afford (refine/fit.cpp bounds it by what the
+  // window's sampling can show), not a reason to spend minutes on one pass.
+  long max_substeps = 0;
+  // Polled every kCancelStride samples: when it reads true the pass gives up (cancelled = true).
+  const std::atomic<bool>* cancel = nullptr;
+};
+
+// Samples between two polls of PassSettings::cancel: ~1 ms of simulation.
+inline constexpr std::size_t kCancelStride = 1024;
+
+struct PassResult {
+  bool finite = false;
+  double cost = 0.0;  // Σ_k Σ_c w_c r_ck², r = measured − model
+  Matrix9 jtwj = Matrix9::Zero();
+  Vector9 jtwr = Vector9::Zero();
+  std::array<double, 2> rss{};         // Σ r² per channel (unweighted)
+  std::array<double, 2> lag1{};        // Σ r_k·r_{k−1} per channel: the residuals' colour
+  Matrix9 long_run = Matrix9::Zero();  // Σ_{|l|<B} (1 − |l|/B)·Σ_k s_k s_{k+l}ᵀ, s_k = J_kᵀW r_k
+  double tbar_min = 0.0, tbar_max = 0.0;  // range of the model's T̄ (damping positivity check)
+  std::size_t samples = 0;
+  long substeps = 0;       // model sub-steps simulated (the pass's cost)
+  bool too_stiff = false;  // stopped at PassSettings::max_substeps
+  bool cancelled = false;  // stopped at PassSettings::cancel
+};
+
+PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
+                         const PassSettings& settings);
+
+}  // namespace scp::refine

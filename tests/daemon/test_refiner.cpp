@@ -1,0 +1,342 @@
+// The daemon's side of the refinement: the window, its breaks, when a fit is due, where the solver
+// starts, and which estimate is best. The fit itself is a recording fake here (refine/ has its own
+// tests); the end-to-end tests run the real one.
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "daemon/config/daemon_config.hpp"
+#include "daemon/refine/refiner.hpp"
+#include "daemon/refine/sample_window.hpp"
+
+namespace scp::daemon::refine {
+namespace {
+
+using scp::refine::FitResult;
+using scp::refine::FitSettings;
+using scp::refine::WindowSample;
+
+constexpr double kPeriod = 0.01;
+
+WindowSample sample_at(double t) {
+  return {t, 1e-3 * std::sin(t), 5.0, 1.0, -1e300};
+}
+
+TEST(SampleWindow, KeepsTheNewestSamplesContiguousInOrder) {
+  SampleWindow w(4);
+  EXPECT_TRUE(w.empty());
+  for (int i = 0; i < 10; ++i) w.push(sample_at(i));
+  ASSERT_EQ(w.size(), 4U);
+  const auto s = w.samples();
+  for (std::size_t i = 0; i < s.size(); ++i) EXPECT_EQ(s[i].t, 6.0 + static_cast<double>(i));
+  EXPECT_DOUBLE_EQ(w.span_s(), 3.0);
+  w.clear();
+  EXPECT_TRUE(w.empty());
+  w.push(sample_at(20));
+  EXPECT_EQ(w.samples().size(), 1U);
+  EXPECT_EQ(w.front().t, 20.0);
+  EXPECT_DOUBLE_EQ(w.span_s(), 0.0);
+}
+
+// The ring stores each sample once and rotates on samples() when wrapped: the order must survive
+// rotations interleaved with pushes and drops.
+TEST(SampleWindow, StaysInOrderAcrossRotationsDropsAndPushes) {
+  SampleWindow w(5);
+  const auto expect_range = [&](double first, double last) {
+    EXPECT_EQ(w.front().t, first);
+    EXPECT_EQ(w.back().t, last);
+    const auto s = w.samples();
+    ASSERT_EQ(s.size(), static_cast<std::size_t>(last - first) + 1);
+    for (std::size_t i = 0; i < s.size(); ++i) EXPECT_EQ(s[i].t, first + static_cast<double>(i));
+    EXPECT_EQ(w.front().t, first);
+    EXPECT_EQ(w.back().t, last);
+  };
+  for (int i = 0; i < 7; ++i) w.push(sample_at(i));
+  expect_range(2, 6);
+  w.drop_oldest();
+  w.drop_oldest();
+  expect_range(4, 6);
+  w.push(sample_at(7));
+  w.push(sample_at(8));
+  expect_range(4, 8);
+  w.push(sample_at(9));
+  expect_range(5, 9);
+  for (int i = 10; i < 13; ++i) w.push(sample_at(i));
+  w.drop_oldest();
+  expect_range(9, 12);
+  expect_range(9, 12);  // a second call on a rotated ring changes nothing
+}
+
+// What the fake fit saw, call by call.
+struct Call {
+  double t_begin, t_end;
+  std::size_t samples;
+  Vector6 start;
+  FitSettings settings;
+};
+
+class RefinerTest : public ::testing::Test {
+ protected:
+  RefinerTest() {
+    settings_.window_s = 10.0;
+    settings_.interval_s = 2.0;
+    settings_.min_window_s = 3.0;
+    settings_.max_iterations = 17;
+    settings_.hac_lags = 5;
+    estimator_.theta0 << 1, 2, 3, 4, 5, 6;
+    settings_.max_gap_s = 10 * kPeriod;
+  }
+
+  Refiner make() {
+    return Refiner(
+        settings_, estimator_, kPeriod,
+        [this](std::span<const WindowSample> w, const Vector6& start, const FitSettings& s) {
+          calls_.push_back({w.front().t, w.back().t, w.size(), start, s});
+          FitResult r;
+          r.converged = converge_;
+          r.message = converge_ ? "converged" : "gave up";
+          r.iterations = 3;
+          r.theta = fitted_theta_;
+          r.sigma = fitted_sigma_;
+          r.t_begin = w.front().t;
+          r.t_end = w.back().t;
+          r.samples = w.size();
+          return r;
+        });
+  }
+
+  // Samples every period in [from, to], segment `segment`; fits whenever due.
+  void feed(Refiner& r, double from, double to, std::uint64_t segment = 0) {
+    const auto n = static_cast<long>(std::llround((to - from) / kPeriod));
+    for (long i = 0; i <= n; ++i) {
+      const double t = from + static_cast<double>(i) * kPeriod;
+      r.accept({sample_at(t), segment});
+      if (r.due()) r.fit(paper_, t, 0);
+    }
+  }
+
+  config::RefineSettings settings_;
+  estimator::EstimatorConfig estimator_;
+  std::vector<Call> calls_;
+  bool converge_ = true;
+  Vector6 fitted_theta_ = (Vector6() << 10, 20, 30, 40, 50, 60).finished();
+  Vector6 fitted_sigma_ = Vector6::Constant(0.1);
+  PaperEstimate paper_{{7, 7, 7, 7, 7, 7}, {1, 1, 1, 1, 1, 1}};
+};
+
+TEST_F(RefinerTest, FirstFitWhenTheWindowSpansMinWindowThenEveryInterval) {
+  Refiner r = make();
+  feed(r, 0.0, 2.99);
+  EXPECT_TRUE(calls_.empty()) << "fitted before min_window_s";
+  feed(r, 3.0, 9.0);
+  ASSERT_EQ(calls_.size(), 4U);  // at 3, 5, 7, 9 s
+  EXPECT_NEAR(calls_[0].t_end, 3.0, 1e-9);
+  EXPECT_NEAR(calls_[1].t_end, 5.0, 1e-9);
+  EXPECT_NEAR(calls_[3].t_end, 9.0, 1e-9);
+  for (const Call& c : calls_) EXPECT_NEAR(c.t_begin, 0.0, 1e-9);
+  EXPECT_EQ(r.view().fits, 4U);
+  EXPECT_EQ(r.view().windows, 1U);
+}
+
+TEST_F(RefinerTest, TheWindowSlidesAndNeverHoldsMoreThanWindowS) {
+  Refiner r = make();
+  feed(r, 0.0, 30.0);
+  ASSERT_FALSE(calls_.empty());
+  const Call& last = calls_.back();
+  EXPECT_NEAR(last.t_end, 29.0, 1e-9);
+  EXPECT_NEAR(last.t_end - last.t_begin, settings_.window_s, kPeriod * 1.01);
+  EXPECT_LE(last.samples, static_cast<std::size_t>(settings_.window_s / kPeriod) + 1);
+}
+
+// Missing samples (loop overruns within refine.max_gap_s) leave the window short of its capacity;
+// it still never covers more than window_s of loop time.
+TEST_F(RefinerTest, TheWindowCoversWindowSOfLoopTimeWhenSamplesAreMissing) {
+  Refiner r = make();
+  for (int i = 0; i <= 1500; ++i) {
+    if (i % 2 == 1) continue;  // every other sample missing: a gap of 2 periods each time
+    r.accept({sample_at(i * kPeriod), 0});
+  }
+  EXPECT_EQ(r.view().windows, 1U);
+  EXPECT_NEAR(r.window().back().t - r.window().front().t, settings_.window_s, 1e-9);
+  EXPECT_EQ(r.window().size(), 501U);
+}
+
+TEST_F(RefinerTest, ATimeGapStartsANewWindowThatWaitsForMinWindowAgain) {
+  Refiner r = make();
+  feed(r, 0.0, 4.0);
+  ASSERT_EQ(calls_.size(), 1U);
+  // More than refine.max_gap_s without a sample.
+  feed(r, 4.0 + 11 * kPeriod, 6.0);
+  EXPECT_EQ(calls_.size(), 1U) << "fitted across a gap or on a short window";
+  EXPECT_EQ(r.view().windows, 2U);
+  feed(r, 6.01, 8.0);
+  ASSERT_EQ(calls_.size(), 2U);
+  EXPECT_NEAR(calls_[1].t_begin, 4.0 + 11 * kPeriod, 1e-9);
+}
+
+TEST_F(RefinerTest, AGapWithinMaxGapPeriodsKeepsTheWindow) {
+  Refiner r = make();
+  feed(r, 0.0, 1.0);
+  feed(r, 1.0 + 9 * kPeriod, 3.5);
+  ASSERT_EQ(calls_.size(), 1U);
+  EXPECT_NEAR(calls_[0].t_begin, 0.0, 1e-9);
+  EXPECT_EQ(r.view().windows, 1U);
+}
+
+TEST_F(RefinerTest, ASegmentChangeOrANonFiniteSampleStartsANewWindow) {
+  Refiner r = make();
+  feed(r, 0.0, 2.0, 0);
+  feed(r, 2.01, 4.0, 1);  // the loop dropped a sample, reset, or left RUNNING
+  EXPECT_TRUE(calls_.empty());
+  EXPECT_EQ(r.view().windows, 2U);
+  WindowSample bad = sample_at(4.01);
+  bad.tbar = std::numeric_limits<double>::quiet_NaN();
+  r.accept({bad, 1});
+  feed(r, 4.02, 6.5, 1);
+  EXPECT_TRUE(calls_.empty());
+  EXPECT_EQ(r.view().windows, 3U);
+  feed(r, 6.51, 7.1, 1);
+  ASSERT_EQ(calls_.size(), 1U);
+  EXPECT_NEAR(calls_[0].t_begin, 4.02, 1e-9);
+}
+
+TEST_F(RefinerTest, SettingsAndKnownParametersReachTheFit) {
+  estimator_.known = {false, false, true, false, false, false};
+  Refiner r = make();
+  feed(r, 0.0, 3.0);
+  ASSERT_EQ(calls_.size(), 1U);
+  const FitSettings& s = calls_[0].settings;
+  EXPECT_EQ(s.max_iterations, 17);
+  EXPECT_EQ(s.hac_lags, 5);
+  EXPECT_TRUE(s.known[2]);
+  EXPECT_FALSE(s.known[0]);
+  // A known parameter starts (and stays) at theta0 whatever the seed.
+  EXPECT_EQ(calls_[0].start[2], 3.0);
+  EXPECT_EQ(calls_[0].start[0], 7.0);
+}
+
+TEST_F(RefinerTest, TheCancelFlagReachesTheFit) {
+  std::atomic<bool> cancel{false};
+  Refiner r = make();
+  feed(r, 0.0, 3.0);
+  r.set_cancel(&cancel);
+  feed(r, 3.0 + kPeriod, 6.0);
+  ASSERT_GE(calls_.size(), 2U);
+  EXPECT_EQ(calls_.front().settings.cancel, nullptr);
+  EXPECT_EQ(calls_.back().settings.cancel, &cancel);
+}
+
+TEST_F(RefinerTest, SeedIsThePaperLawThenThePreviousConvergedFit) {
+  Refiner r = make();
+  feed(r, 0.0, 3.0);
+  ASSERT_EQ(calls_.size(), 1U);
+  EXPECT_EQ(calls_[0].start, Vector6::Constant(7.0));
+  EXPECT_EQ(r.view().seed, Seed::paper);
+  feed(r, 3.01, 5.0);
+  ASSERT_EQ(calls_.size(), 2U);
+  EXPECT_EQ(calls_[1].start, fitted_theta_);
+  EXPECT_EQ(r.view().seed, Seed::refined);
+}
+
+TEST_F(RefinerTest, APoorlyDeterminedFitIsNoSeed) {
+  fitted_sigma_ = Vector6::Constant(15.0);  // above |θ̂1| = 10: θ1 not determined
+  Refiner r = make();
+  feed(r, 0.0, 3.0);
+  feed(r, 3.01, 5.0);
+  ASSERT_EQ(calls_.size(), 2U);
+  EXPECT_TRUE(r.view().converged);
+  EXPECT_EQ(calls_[1].start, Vector6::Constant(7.0));
+  EXPECT_EQ(r.view().seed, Seed::paper);
+}
+
+TEST_F(RefinerTest, APoorlyDeterminedFitFromTheRefinedSeedIsRetriedFromThePaperLaw) {
+  Refiner r = make();
+  feed(r, 0.0, 3.0);  // well determined: the next seed is this fit
+  fitted_sigma_ = Vector6::Constant(100.0);
+  feed(r, 3.01, 5.0);
+  ASSERT_EQ(calls_.size(), 3U);
+  EXPECT_EQ(calls_[1].start, fitted_theta_);
+  EXPECT_EQ(calls_[2].start, Vector6::Constant(7.0));  // the retry, from the paper law
+}
+
+TEST_F(RefinerTest, SeedIsTheta0WhenThePaperLawHasNothingYet) {
+  paper_.theta_hat = {0, 0, 0, 0, 0, 0};
+  converge_ = false;
+  Refiner r = make();
+  feed(r, 0.0, 3.0);
+  ASSERT_EQ(calls_.size(), 1U);
+  EXPECT_EQ(calls_[0].start, estimator_.theta0);
+  EXPECT_EQ(r.view().seed, Seed::theta0);
+  paper_.theta_hat[4] = std::numeric_limits<double>::quiet_NaN();
+  paper_.theta_hat[0] = 5.0;
+  feed(r, 3.01, 5.0);
+  ASSERT_EQ(calls_.size(), 2U);
+  EXPECT_EQ(calls_[1].start, estimator_.theta0) << "a non-finite paper θ̂ is no seed";
+  // A fit that did not converge is no seed either.
+  EXPECT_EQ(r.view().seed, Seed::theta0);
+  EXPECT_EQ(r.view().converged_fits, 0U);
+  EXPECT_FALSE(r.view().converged);
+  EXPECT_STREQ(r.view().message.data(), "gave up");
+}
+
+TEST_F(RefinerTest, HasUnfittedDataOnlyWhenNewSamplesCameAfterTheLastFit) {
+  Refiner r = make();
+  feed(r, 0.0, 2.0);
+  EXPECT_FALSE(r.has_unfitted_data()) << "shorter than min_window_s";
+  feed(r, 2.01, 3.0);
+  ASSERT_EQ(calls_.size(), 1U);
+  EXPECT_FALSE(r.has_unfitted_data());
+  feed(r, 3.01, 3.5);
+  EXPECT_TRUE(r.has_unfitted_data());
+  EXPECT_FALSE(r.due());
+}
+
+TEST_F(RefinerTest, DrainTakesEverythingFromTheRing) {
+  auto ring = std::make_unique<HandOffRing>();
+  for (int i = 0; i < 100; ++i) ASSERT_TRUE(ring->try_push({sample_at(i * kPeriod), 0}));
+  Refiner r = make();
+  EXPECT_EQ(r.drain(*ring), 100U);
+  EXPECT_EQ(r.window().size(), 100U);
+  EXPECT_EQ(ring->size_approx(), 0U);
+}
+
+TEST_F(RefinerTest, TheViewCarriesTheFitAndItsWindow) {
+  Refiner r = make();
+  feed(r, 0.0, 3.0);
+  const RefinedView& v = r.view();
+  EXPECT_TRUE(v.valid);
+  EXPECT_TRUE(v.converged);
+  EXPECT_EQ(v.iterations, 3);
+  EXPECT_EQ(v.theta_hat[5], 60.0);
+  EXPECT_EQ(v.sigma[0], 0.1);
+  EXPECT_NEAR(v.t_end, 3.0, 1e-9);
+  EXPECT_EQ(v.samples, 301U);
+  EXPECT_NEAR(v.fitted_at_t, 3.0, 1e-9);
+  EXPECT_EQ(v.interval_s, settings_.interval_s);
+}
+
+TEST(RefinedIsBest, OnlyARecentConvergedFitWithFiniteSigma) {
+  RefinedView v;
+  v.interval_s = 10.0;
+  EXPECT_FALSE(refined_is_best(v, 0.0)) << "no fit yet";
+  v.valid = true;
+  v.converged = true;
+  v.fitted_at_t = 100.0;
+  v.theta_hat = {1, 2, 3, 4, 5, 6};
+  v.sigma = {0.1, 0.1, 0.1, 0.1, 0.1, 0.0};
+  EXPECT_TRUE(refined_is_best(v, 100.0));
+  EXPECT_TRUE(refined_is_best(v, 130.0));
+  EXPECT_FALSE(refined_is_best(v, 130.1)) << "older than 3 intervals";
+  v.sigma[2] = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(refined_is_best(v, 100.0));
+  v.sigma[2] = 0.1;
+  v.converged = false;
+  EXPECT_FALSE(refined_is_best(v, 100.0));
+}
+
+}  // namespace
+}  // namespace scp::daemon::refine

@@ -1,0 +1,148 @@
+#pragma once
+// Recorded windows for the refine tests: the project's simulated plant (drivers/sim, RK4 at
+// 20 sub-steps per ms, voltage held over each step as the daemon's DAC holds it) driven by an
+// excitation, sampled like the daemon samples, with optional sensor noise.
+
+#include <cmath>
+#include <functional>
+#include <memory>
+#include <random>
+#include <vector>
+
+#include "drivers/sim/plant.hpp"
+#include "excitation/excitation.hpp"
+#include "refine/fit.hpp"
+
+namespace scp::refine::test {
+
+inline Vector6 theta_of(const drivers::sim::PlantParams& p) {
+  const auto a = drivers::sim::theta_of(p);
+  Vector6 t;
+  for (int i = 0; i < 6; ++i) t[i] = a[i];
+  return t;
+}
+
+// Table I.
+inline drivers::sim::PlantParams paper_actuator() {
+  return {};
+}
+
+// An underdamped, thermally faster actuator: a thinner, lighter coil (m = 20 g, Cth = 0.12 Ws/°C,
+// λ = 0.012 W/°C: τ_th = 10 s, 1.7× faster than the paper's), stiffer and lightly damped
+// (k = 400 N/m, b = 2 Ns/m: poles −60 ± 129j rad/s, ζ ≈ 0.42 at room temperature, less when hot
+// since α1 > 0 adds damping), R = 5 Ω; its peak rise at 3.2 V is V²/(Rλ) ≈ 170 °C.
+inline drivers::sim::PlantParams underdamped_actuator() {
+  drivers::sim::PlantParams p;
+  p.m = 0.02;
+  p.R = 5.0;
+  p.Cth = 0.12;
+  p.lambda = 0.012;
+  p.b = 2.0;
+  p.k = 400.0;
+  p.alpha1 = 0.005;
+  p.alpha2 = 0.004;
+  return p;
+}
+
+struct Noise {
+  double x = 0.0;     // m, standard deviation
+  double tbar = 0.0;  // °C
+  // Correlation time in samples of a first-order low-pass the x noise goes through (0: white);
+  // its output is rescaled to keep the standard deviation `x`.
+  double x_correlation_samples = 0.0;
+  unsigned seed = 1;
+};
+
+// `seconds` of the plant at period `dt`, voltage from `voltage(t)` written at each sample and held
+// until the next: window sample k+1 carries the voltage set at sample k (voltage_since = t_k).
+inline std::vector<WindowSample> record(const drivers::sim::PlantParams& params, double seconds,
+                                        double dt, const std::function<double(double)>& voltage,
+                                        const Noise& noise = {}) {
+  drivers::sim::Plant plant(params);
+  const auto n = static_cast<std::size_t>(std::llround(seconds / dt)) + 1;
+  std::vector<WindowSample> w;
+  w.reserve(n);
+  std::mt19937_64 rng(noise.seed);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  const double rho =
+      noise.x_correlation_samples > 0.0 ? std::exp(-1.0 / noise.x_correlation_samples) : 0.0;
+  const double gain = std::sqrt(1.0 - rho * rho);
+  double coloured = gauss(rng);
+  double v_prev = 0.0;
+  for (std::size_t k = 0; k < n; ++k) {
+    const double t = static_cast<double>(k) * dt;
+    coloured = rho * coloured + gain * gauss(rng);
+    WindowSample s;
+    s.t = t;
+    s.x = plant.x() + noise.x * (rho > 0.0 ? coloured : gauss(rng));
+    s.tbar = plant.tbar() + noise.tbar * gauss(rng);
+    s.voltage = v_prev;
+    s.voltage_since = t - dt;
+    w.push_back(s);
+    v_prev = voltage(t);
+    plant.step(v_prev, dt);
+  }
+  return w;
+}
+
+// A copy of a noise-free window with sensor noise added (the plant is simulated once, the noise
+// drawn per seed).
+inline std::vector<WindowSample> with_noise(std::vector<WindowSample> w, const Noise& noise) {
+  std::mt19937_64 rng(noise.seed);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  const double rho =
+      noise.x_correlation_samples > 0.0 ? std::exp(-1.0 / noise.x_correlation_samples) : 0.0;
+  const double gain = std::sqrt(1.0 - rho * rho);
+  double coloured = gauss(rng);
+  for (WindowSample& s : w) {
+    coloured = rho * coloured + gain * gauss(rng);
+    s.x += noise.x * coloured;
+    s.tbar += noise.tbar * gauss(rng);
+  }
+  return w;
+}
+
+inline std::function<double(double)> paper_voltage() {
+  auto ex = std::make_shared<excitation::Excitation>(excitation::paper_excitation());
+  return [ex](double t) { return ex->voltage(t); };
+}
+
+inline std::vector<WindowSample> paper_record(double seconds, const Noise& noise = {},
+                                              const drivers::sim::PlantParams& p = {}) {
+  return record(p, seconds, 1e-3, paper_voltage(), noise);
+}
+
+// A record through a link: samples every 10 ms ± 2 ms (uniform jitter), each new voltage landing
+// 3.6 ms after the sample it was computed from (voltage_since inside the interval).
+inline std::vector<WindowSample> link_record(const drivers::sim::PlantParams& params,
+                                             double seconds) {
+  drivers::sim::Plant plant(params);
+  excitation::Excitation ex(excitation::paper_excitation());
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> jitter(-2e-3, 2e-3);
+  std::vector<WindowSample> w;
+  double t = 0.0, v_cur = 0.0;
+  w.push_back({0.0, 0.0, 0.0, 0.0, -1e300});
+  while (t < seconds) {
+    const double next = t + 10e-3 + jitter(rng);
+    const double lands = t + 3.6e-3;
+    const double v_prev = v_cur;
+    v_cur = ex.voltage(t);
+    plant.step(v_prev, lands - t);
+    plant.step(v_cur, next - lands);
+    t = next;
+    w.push_back({t, plant.x(), plant.tbar(), v_cur, lands});
+  }
+  return w;
+}
+
+// The noise-free paper record of `seconds`, simulated once per test program.
+inline const std::vector<WindowSample>& cached_paper_record(double seconds) {
+  static std::vector<std::pair<double, std::vector<WindowSample>>> cache;
+  for (const auto& [s, w] : cache)
+    if (s == seconds) return w;
+  cache.emplace_back(seconds, paper_record(seconds));
+  return cache.back().second;
+}
+
+}  // namespace scp::refine::test

@@ -1,0 +1,59 @@
+#include "tools/crb/crb_report.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <vector>
+
+namespace scp::tools::crb {
+
+nlohmann::json crb_report(const Experiment& e, const NoiseLevel& noise,
+                          const std::array<bool, 6>& known, double ambient_c,
+                          double temperature_max_c) {
+  if (!(std::isfinite(noise.x) && noise.x > 0.0 && std::isfinite(noise.temperature) &&
+        noise.temperature > 0.0)) {
+    throw std::invalid_argument(
+        "the bound needs sensor noise > 0 on x and on T (a noise-free channel would fix θ "
+        "exactly): set driver.sim.noise.x and .temperature, or --noise-x and --noise-temperature");
+  }
+  const refine::Matrix6 cov = refine::cramer_rao_bound(
+      e.window, e.theta, e.initial, refine::Vector2(noise.x, noise.temperature), known);
+
+  std::vector<double> theta(6), sigma(6), rel(6);
+  std::vector<bool> known_list(6);
+  for (int i = 0; i < 6; ++i) {
+    const auto u = static_cast<std::size_t>(i);
+    theta[u] = e.theta[i];
+    // A bound that is not a finite non-negative variance is reported as null, not as a number.
+    const double var = cov(i, i);
+    sigma[u] = std::isfinite(var) && var >= 0.0 ? std::sqrt(var) : NAN;
+    rel[u] = sigma[u] / std::fabs(theta[u]);
+    known_list[u] = known[u];
+  }
+  auto finite_or_null = [](const std::vector<double>& v) {
+    nlohmann::json a = nlohmann::json::array();
+    for (const double d : v) a.push_back(std::isfinite(d) ? nlohmann::json(d) : nlohmann::json());
+    return a;
+  };
+  nlohmann::json out;
+  out["theta"] = theta;
+  out["crb_sigma"] = finite_or_null(sigma);
+  out["crb_rel"] = finite_or_null(rel);
+  out["known"] = known_list;
+  out["noise"] = {{"x", noise.x}, {"temperature", noise.temperature}};
+  out["period_s"] = e.period_s;
+  out["duration_s"] = e.duration_s;
+  out["window"] = {
+      {"t_begin", e.window.front().t}, {"t_end", e.window.back().t}, {"samples", e.window.size()}};
+  out["initial_state"] = {e.initial[0], e.initial[1], e.initial[2]};
+  out["excitation"] = {
+      {"mean_v", e.mean_voltage}, {"mean_v2", e.mean_voltage_sq}, {"max_v", e.max_voltage}};
+  const double max_temperature = e.max_tbar + ambient_c;
+  out["thermal"] = {{"mean_tbar", e.mean_tbar},
+                    {"max_tbar", e.max_tbar},
+                    {"max_temperature_c", max_temperature},
+                    {"temperature_max_c", temperature_max_c},
+                    {"within_limit", max_temperature < temperature_max_c}};
+  return out;
+}
+
+}  // namespace scp::tools::crb

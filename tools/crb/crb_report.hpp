@@ -1,0 +1,26 @@
+#pragma once
+// The Cramér–Rao bound of an experiment and what the experiment costs, as one JSON object
+// (scp-crb's output; scripts/montecarlo reads it).
+
+#include <array>
+#include <nlohmann/json.hpp>
+
+#include "tools/crb/experiment.hpp"
+
+namespace scp::tools::crb {
+
+struct NoiseLevel {
+  double x = 0.0;            // m, standard deviation of the position sensor
+  double temperature = 0.0;  // °C
+};
+
+// Calls refine::cramer_rao_bound() on the experiment's window and returns
+//   theta, crb_sigma (absolute), crb_rel (σ/|θ|), known, noise, window {t_begin, t_end, samples},
+//   initial_state, excitation {mean_v, mean_v2, max_v}, thermal {mean_tbar, max_tbar,
+//   max_temperature_c, temperature_max_c, within_limit}.
+// Throws std::invalid_argument when a noise level is not > 0 (a noise-free channel has no bound).
+nlohmann::json crb_report(const Experiment& experiment, const NoiseLevel& noise,
+                          const std::array<bool, 6>& known, double ambient_c,
+                          double temperature_max_c);
+
+}  // namespace scp::tools::crb
