@@ -59,11 +59,16 @@ TEST(Reload, SighupAppliesExcitationRecordingAndMetrics) {
   write_config(daemon.config_path(), cfg);
   daemon.signal(SIGHUP);
 
-  // The excitation: the loop commands the new offset.
-  const auto moved = wait_voltage(daemon, 1.5);
+  // The excitation: the loop commands the new offset. The recording: STATUS shows it, rows
+  // arrive in the new directory. The sections are applied one after the other (the recorder
+  // starts after the loop took the new excitation), so the test waits for both.
+  const auto moved = daemon.wait_status(
+      [](const json& s) {
+        return s.value("state", "") == "running" &&
+               std::fabs(num(s, "voltage_command") - 1.5) < 1e-12 && s.contains("recording");
+      },
+      Seconds(15));
   ASSERT_TRUE(moved) << daemon.status().dump() << daemon.stderr_text();
-  // The recording: STATUS shows it, rows arrive in the new directory.
-  EXPECT_TRUE(moved->contains("recording")) << moved->dump();
   sleep_s(0.5);
   const auto files = files_ending(rec, ".csv");
   ASSERT_EQ(files.size(), 1u) << daemon.stderr_text();
