@@ -36,6 +36,18 @@ std::optional<json> wait_voltage(const DaemonProcess& daemon, double volts) {
       Seconds(15));
 }
 
+// The reload hands the recording over in the service thread after the loop stopped pushing
+// rows, so STATUS drops "recording" while the writer may still drain its ring; the file is
+// complete only once the daemon logs it closed.
+bool wait_logged(const DaemonProcess& daemon, const std::string& text) {
+  const auto end = std::chrono::steady_clock::now() + Seconds(15);
+  while (std::chrono::steady_clock::now() < end) {
+    if (contains(daemon.stderr_text(), text)) return true;
+    sleep_s(0.05);
+  }
+  return false;
+}
+
 TEST(Reload, SighupAppliesExcitationRecordingAndMetrics) {
   TempDir dir;
   const std::string metrics_a = dir.file("metrics-a");
@@ -124,10 +136,10 @@ TEST(Reload, SighupAppliesExcitationRecordingAndMetrics) {
   const auto stopped = wait_voltage(daemon, 0.0);
   ASSERT_TRUE(stopped) << daemon.stderr_text();
   EXPECT_FALSE(stopped->contains("recording")) << stopped->dump();
+  ASSERT_TRUE(wait_logged(daemon, " closed (")) << daemon.stderr_text();
   const auto size_stopped = std::filesystem::file_size(files[0]);
   sleep_s(1.0);
   EXPECT_EQ(std::filesystem::file_size(files[0]), size_stopped) << "still recording";
-  EXPECT_TRUE(contains(daemon.stderr_text(), "closed")) << daemon.stderr_text();
   // The one file went on past the refused reloads: its last row is more than 1 s after the first
   // refusal (the file is complete now that the recording is closed).
   std::istringstream text(read_text(files[0]));
