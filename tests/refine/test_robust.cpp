@@ -13,30 +13,18 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <functional>
 #include <limits>
-#include <memory>
 #include <thread>
 
-#include "excitation/excitation.hpp"
+#include "tests/refine/light_stiff.hpp"
 #include "tests/refine/record.hpp"
 
 namespace scp::refine {
 namespace {
 
-// config/actuators/light-stiff.yaml's plant.
-drivers::sim::PlantParams light_stiff() {
-  drivers::sim::PlantParams p;
-  p.m = 0.02;
-  p.R = 4.0;
-  p.Cth = 0.125;
-  p.lambda = 0.025;
-  p.b = 2.0;
-  p.k = 400.0;
-  p.alpha1 = 0.01;
-  p.alpha2 = 0.02;
-  return p;
-}
+using test::light_stiff;
+using test::light_stiff_collapsed_start;
+using test::light_stiff_voltage;
 
 // 10 s of the light-stiff actuator at 1 kHz under the paper's voltage with issue 8's N2 noise.
 const std::vector<WindowSample>& hard_window() {
@@ -45,17 +33,9 @@ const std::vector<WindowSample>& hard_window() {
   return w;
 }
 
-// The paper law's estimate when the daemon made that fit (light-stiff, N2, seed 1, t = 30 s): the
-// mechanical part collapsed toward 0 with θ3 < 0, as errors-in-variables makes it.
-Vector6 collapsed_start() {
-  Vector6 s;
-  s << 3.08, -0.108, -1.51, -7.7e-5, 0.2, 2.0;
-  return s;
-}
-
 TEST(FitRobustness, AnUnidentifiableScaleEndsWithinTheBudget) {
   const FitSettings settings;
-  const FitResult r = fit(hard_window(), collapsed_start(), settings);
+  const FitResult r = fit(hard_window(), light_stiff_collapsed_start(), settings);
   EXPECT_LE(r.evaluations, settings.max_evaluations + 1);  // + the covariance pass
   EXPECT_TRUE(r.theta.allFinite());
   EXPECT_GT(std::strlen(r.message), 0U);
@@ -70,7 +50,7 @@ TEST(FitRobustness, AnUnidentifiableScaleEndsWithinTheBudget) {
 TEST(FitRobustness, AnEvaluationBudgetStopsTheFitNotConverged) {
   FitSettings settings;
   settings.max_evaluations = 15;
-  const FitResult r = fit(hard_window(), collapsed_start(), settings);
+  const FitResult r = fit(hard_window(), light_stiff_collapsed_start(), settings);
   EXPECT_FALSE(r.converged);
   EXPECT_LE(r.evaluations, 15);
   EXPECT_NE(std::strstr(r.message, "budget"), nullptr) << r.message;
@@ -81,7 +61,7 @@ TEST(FitRobustness, ACancelFlagSetBeforehandStopsAtOnce) {
   std::atomic<bool> cancel{true};
   FitSettings settings;
   settings.cancel = &cancel;
-  const FitResult r = fit(hard_window(), collapsed_start(), settings);
+  const FitResult r = fit(hard_window(), light_stiff_collapsed_start(), settings);
   EXPECT_FALSE(r.converged);
   EXPECT_STREQ(r.message, "cancelled");
   EXPECT_LE(r.evaluations, 1);
@@ -95,14 +75,14 @@ TEST(FitRobustness, ACancelFlagSetDuringTheFitStopsIt) {
     std::this_thread::sleep_for(std::chrono::milliseconds(30));
     cancel.store(true);
   });
-  const FitResult r = fit(hard_window(), collapsed_start(), settings);
+  const FitResult r = fit(hard_window(), light_stiff_collapsed_start(), settings);
   canceller.join();
   EXPECT_FALSE(r.converged);
   EXPECT_STREQ(r.message, "cancelled");
 }
 
 TEST(FitRobustness, ANonFiniteStartIsReplacedAndTheFitEnds) {
-  Vector6 start = collapsed_start();
+  Vector6 start = light_stiff_collapsed_start();
   start[0] = std::numeric_limits<double>::quiet_NaN();
   start[4] = std::numeric_limits<double>::infinity();
   FitSettings settings;
@@ -116,23 +96,12 @@ TEST(FitRobustness, ANonFiniteStartIsReplacedAndTheFitEnds) {
 // paper's slow sine, config/actuators/light-stiff.yaml) the data fix the common scale of θ1..θ4,
 // and the fit from the paper law's collapsed estimate lands within a few Cramér–Rao σ at N2, where
 // the paper's voltage left far minima on the stiff side (Monte Carlo N2 seed 3: +6200 %).
-std::function<double(double)> light_stiff_voltage() {
-  excitation::ExcitationSettings s;
-  s.v_max = 3.2;
-  s.offset = 1.16;
-  s.sines.push_back({0.6, 0.006, -1.5707963267948966});
-  s.prbs.amplitude = 1.2;
-  s.prbs.bit_period_s = 1.0;
-  auto ex = std::make_shared<excitation::Excitation>(s);
-  return [ex](double t) { return ex->voltage(t); };
-}
-
 TEST(FitRobustness, LightStiffOnItsOwnExcitationLandsWithinItsBoundFromTheCollapsedStart) {
   const auto p = light_stiff();
   const Vector6 theta = test::theta_of(p);
   const auto clean = test::record(p, 30.0, 1e-3, light_stiff_voltage());
   const auto noisy = test::with_noise(clean, {.x = 1e-6, .tbar = 1e-2, .seed = 3});
-  const FitResult r = fit(noisy, collapsed_start());
+  const FitResult r = fit(noisy, light_stiff_collapsed_start());
   ASSERT_TRUE(r.converged) << r.message;
   const InitialState x0(clean.front().x, 0.0, clean.front().tbar);
   const Matrix6 crb = cramer_rao_bound(clean, theta, x0, Vector2(1e-6, 1e-2));
