@@ -53,21 +53,42 @@ BENCHMARK(BM_Fit300s)->Unit(benchmark::kMillisecond)->Iterations(3);
 // light-stiff (ωn = 141 rad/s against the paper's 1.8, config/actuators/light-stiff.yaml) on its
 // own excitation, 300 s at 1 kHz with N1 noise, from the paper law's collapsed estimate on that
 // actuator, as the daemon would hand it over.
-void BM_Fit300sLightStiff(benchmark::State& state) {
+const std::vector<WindowSample>& light_stiff_window() {
   static const auto w = test::record(test::light_stiff(), 300.0, 1e-3, test::light_stiff_voltage(),
                                      {.x = 1e-7, .tbar = 1e-3, .seed = 7});
+  return w;
+}
+
+void fit_light_stiff(benchmark::State& state, const Vector6& start) {
   static const Vector6 theta = test::theta_of(test::light_stiff());
-  const Vector6 start = test::light_stiff_collapsed_start();
   FitResult r;
   for (auto _ : state) {
-    r = fit(w, start);
+    r = fit(light_stiff_window(), start);
     benchmark::DoNotOptimize(r);
   }
   state.counters["converged"] = r.converged ? 1 : 0;
   state.counters["iterations"] = r.iterations;
+  state.counters["evaluations"] = r.evaluations;
   state.counters["theta3_rel_err"] = r.theta[2] / theta[2] - 1.0;
 }
+
+// The daemon's first fit on this actuator: seeded by the paper law's collapsed estimate.
+void BM_Fit300sLightStiff(benchmark::State& state) {
+  fit_light_stiff(state, test::light_stiff_collapsed_start());
+}
 BENCHMARK(BM_Fit300sLightStiff)->Unit(benchmark::kMillisecond)->Iterations(3);
+
+// Every later fit: seeded by the previous window's converged fit (daemon/refine/refiner.cpp), here
+// the same data's first 290 s, i.e. a refinement every 10 s.
+void BM_Fit300sLightStiffWarm(benchmark::State& state) {
+  static const Vector6 previous = [] {
+    const auto& w = light_stiff_window();
+    const std::vector<WindowSample> first(w.begin(), w.end() - 10'000);
+    return fit(first, test::light_stiff_collapsed_start()).theta;
+  }();
+  fit_light_stiff(state, previous);
+}
+BENCHMARK(BM_Fit300sLightStiffWarm)->Unit(benchmark::kMillisecond)->Iterations(3);
 
 Vector9 truth_p() {
   Vector9 p;
