@@ -239,12 +239,21 @@ TEST(E2eLinkTiming, StampedTransactionsIdentifyFarBetterThanDeadlines) {
       const double sigma = r["sigma"][p].get<double>();
       z[p - 4] = std::fabs(r["theta_hat"][p].get<double>() - kTheta[p]) / sigma;
     }
+    // θ1..θ4 beside their own σ and the x residual: their common scale 1/m is the weak
+    // direction, bounded at 2.4e-4 per nm of white x noise at 100 Hz, and the stamps' jitter
+    // times ẋ is tens of nm (docs/numerics.md, "Time on a real link").
+    double sigma_mech = 0.0;
+    for (std::size_t p = 0; p < 4; ++p) {
+      sigma_mech = std::max(sigma_mech, r["sigma"][p].get<double>() / kTheta[p]);
+    }
+    const double x_rms = r.contains("residual_rms") ? r["residual_rms"].value("x", -1.0) : -1.0;
     std::printf(
         "[measured] %-9s: refined (converged %s, window %.0f s) rel. error theta1..4 "
-        "(worst) %.2e, theta5 %.2e (%.1f sigma), theta6 %.2e (%.1f sigma)\n",
+        "(worst) %.2e (sigma %.2e), theta5 %.2e (%.1f sigma), theta6 %.2e (%.1f sigma); x "
+        "residual RMS %.2e m\n",
         names[b], r.value("converged", false) ? "yes" : "no",
         r["window"].value("t_end", 0.0) - r["window"].value("t_begin", 0.0), max_rel(r, 0, 4),
-        max_rel(r, 4, 1), z[0], max_rel(r, 5, 1), z[1]);
+        sigma_mech, max_rel(r, 4, 1), z[0], max_rel(r, 5, 1), z[1], x_rms);
     if (r.value("converged", false)) refined_err[static_cast<std::size_t>(b)] = max_rel(r, 4, 2);
   }
   // Stamped, θ5 and θ6 refined to 2-6e-5 under stress -c 2 -i 1 (deadlines: 2e-5..1.9e-4, the
@@ -275,9 +284,13 @@ TEST(E2eLinkTiming, StampedTransactionsIdentifyFarBetterThanDeadlines) {
   EXPECT_GT(med[1][5], 2e-4) << figures();
   EXPECT_LT(med[0][5], med[1][5] / 5.0) << figures();
   EXPECT_LT(med[0][4], med[1][4] / 5.0) << figures();
-  // Absolute: 1.5e-4 x the machine factor (3.2e-4 at the stress figure above, where 4-5e-5 was
-  // measured; issue 9's CI run, 6.5e-4 at factor 2.8: bound 4.3e-4, fails it).
-  EXPECT_LT(std::max(med[0][4], med[0][5]), 1.5e-4 * machine_factor) << figures();
+  // Absolute: 2e-4 x the machine factor, the refined fit's bound (4e-4 at the stress figure
+  // above, where 4-5e-5 was measured; issue 9's CI run before the kernel's receive stamps,
+  // 6.5e-4 at factor 2.8: bound 5.6e-4, fails it). 1.5e-4 was too tight: one round of
+  // scripts/stress-suite measured medians 1.7e-4 / 2.2e-4 (θ5 / θ6) at factor 1.37 (0.74 %
+  // stretched or failed), the deadlines' 1.8e-3 / 1.7e-3 beside them, 8x worse. The counters
+  // see only the transactions that were late, not every stamp a loaded softirq delayed.
+  EXPECT_LT(std::max(med[0][4], med[0][5]), 2e-4 * machine_factor) << figures();
   // θ1..θ4: at 100 Hz the paper law's own discretization alone leaves 5e-3..1.1e-2 (ideal DAC,
   // tests/estimator/test_link_timing.cpp); the mechanical row is ~1e-8 of the thermal one in
   // information, and millisecond latency outliers, failed reads and the reconnections of a late
