@@ -1,8 +1,8 @@
 #pragma once
-// The thread that runs the refinement in the service: ordinary scheduling (SCHED_BATCH, nice 10),
-// below the real-time loop, which it never makes wait. It drains the loop's hand-off ring into the
-// Refiner, fits every refine.interval_s, reads the paper law's θ̂ and σ from the loop's published
-// state at each fit and publishes a RefinedView through its own Seqlock.
+// The thread that runs the refinement in the service: ordinary scheduling (SCHED_BATCH at the
+// process's nice), below the real-time loop, which it never makes wait. It drains the loop's
+// hand-off ring into the Refiner, fits every refine.interval_s, reads the paper law's θ̂ and σ from
+// the loop's published state at each fit and publishes a RefinedView through its own Seqlock.
 
 #include <atomic>
 #include <memory>
