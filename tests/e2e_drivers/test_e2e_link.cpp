@@ -414,7 +414,16 @@ TEST(E2eLink, RefusedStartsNeverTouchTheDevice) {
   std::this_thread::sleep_for(std::chrono::milliseconds(200));
   EXPECT_TRUE(read_command_log(second.log).empty()) << "the second daemon wrote to its device";
   EXPECT_TRUE(read_command_log(third.log).empty()) << "the daemon without socket directory wrote";
-  EXPECT_EQ(state_of(*status(first.setup.socket_path)), "running");
+  // The bench's socket still answers for the first daemon. Not "running": with a 2 ms timeout
+  // on a loaded machine the first daemon's own link can hiccup into a fault that recovers by
+  // itself (a stress-suite round), which says nothing about the refused starts.
+  const auto still = status(first.setup.socket_path);
+  ASSERT_TRUE(still) << first.daemon->output();
+  EXPECT_EQ(still->value("config_file", ""), first.dir.file("d.yaml")) << still->dump();
+  if (state_of(*still) != "running") {
+    EXPECT_NE(still->value("fault_reason", "").find("no reply"), std::string::npos)
+        << still->dump();
+  }
 }
 
 // The device-side watchdog: the daemon feeds the DAQ's heartbeat register; when the daemon is
