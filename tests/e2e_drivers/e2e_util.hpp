@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -193,6 +194,24 @@ nlohmann::json wait_status(const std::string& socket_path, double timeout_s, Pre
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   return last;
+}
+
+// CLOCK_REALTIME in ns, the clock of STATUS `last_fault.unix_ns`.
+inline std::int64_t unix_now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+// Waits for a FAULT that began at or after `since_unix_ns`. On a loaded machine a slow first
+// reply or two can fault a tight Modbus link at start-up and it recovers by itself; waiting for
+// any "fault" then finds that one instead of the one the test causes.
+inline nlohmann::json wait_fault_since(const std::string& socket_path, std::int64_t since_unix_ns,
+                                       double timeout_s) {
+  return wait_status(socket_path, timeout_s, [&](const nlohmann::json& s) {
+    return s.is_object() && s.value("state", "") == "fault" && s.contains("last_fault") &&
+           s["last_fault"].value("unix_ns", std::int64_t{0}) >= since_unix_ns;
+  });
 }
 
 // The last line of `scp-estimatord --offline` is one JSON object.

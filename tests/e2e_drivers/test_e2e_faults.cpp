@@ -7,7 +7,6 @@
 
 #include <chrono>
 #include <cmath>
-#include <cstdint>
 #include <cstdio>
 #include <string>
 
@@ -228,14 +227,9 @@ TEST(E2eFaults, ModbusServerKilledAndRestartedMidRun) {
   ASSERT_EQ(state_of(up), "running") << up.dump() << daemon.output();
   // The fault the kill causes, not a start-up hiccup of a loaded machine (a slow first reply
   // faults and recovers by itself): one that began after the kill.
-  const std::int64_t killed_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                     std::chrono::system_clock::now().time_since_epoch())
-                                     .count();
+  const std::int64_t killed_ns = unix_now_ns();
   simdaq->stop(SIGKILL);
-  const auto fault = wait_status(run.setup.socket_path, 10.0, [&](const auto& s) {
-    return state_of(s) == "fault" && s.contains("last_fault") &&
-           s["last_fault"].value("unix_ns", std::int64_t{0}) >= killed_ns;
-  });
+  const auto fault = wait_fault_since(run.setup.socket_path, killed_ns, 10.0);
   ASSERT_EQ(state_of(fault), "fault") << fault.dump();
   // The server is gone: 0 V cannot be delivered, and STATUS must not claim it was.
   EXPECT_EQ(fault.value("output", ""), "unconfirmed") << fault.dump();

@@ -26,6 +26,10 @@ std::string state_of(const nlohmann::json& s) {
   return s.is_object() ? s.value("state", "") : "";
 }
 
+// How a lab configures a TCP DAQ on a shared, loaded machine (with a 10 ms period and a 4 ms
+// timeout): 8 failed transactions in a row tolerated, 80 ms, below safety.stale_timeout_s.
+const std::string kTolerant = "    max_consecutive_failures: 8\n";
+
 // A real-time daemon (5 ms period, 2 ms Modbus timeout) on a scp-simdaq started with `peer_args`.
 struct LinkRun {
   double timeout = 0.002;
@@ -37,12 +41,6 @@ struct LinkRun {
   std::unique_ptr<ChildProcess> daemon;
   int port = -1;
   std::int64_t peer_started_ns = 0;
-
-  static std::int64_t unix_now_ns() {
-    return std::chrono::duration_cast<std::chrono::nanoseconds>(
-               std::chrono::system_clock::now().time_since_epoch())
-        .count();
-  }
 
   explicit LinkRun(const std::string& extra_map = "", double period_s = 0.005,
                    double timeout_s = 0.002)
@@ -80,21 +78,10 @@ struct LinkRun {
     return wait_status(setup.socket_path, timeout_s,
                        [&](const auto& s) { return state_of(s) == state; });
   }
-  // The first FAULT that began at or after `since_unix_ns`. On a loaded machine a slow first
-  // reply or two can fault the link at start-up (4 timeouts of 2 ms in a row) and it recovers by
-  // itself; waiting for any "fault" then finds that one instead of the one the test causes
-  // (a stress-suite round: the link-lost test read the start-up fault, 0 V confirmed).
-  nlohmann::json wait_fault_since(std::int64_t since_unix_ns, double timeout_s) {
-    return wait_status_where(
-        [&](const auto& s) {
-          return state_of(s) == "fault" && s.contains("last_fault") &&
-                 s["last_fault"].value("unix_ns", std::int64_t{0}) >= since_unix_ns;
-        },
-        timeout_s);
-  }
-  // The fault a peer injects after 2 s of its own time: anything from 1.5 s on is that one.
+  // The fault a peer injects after 2 s of its own time: anything from 1.5 s on is that one, not
+  // a start-up hiccup of the 2 ms link (a stress-suite round read the start-up fault).
   nlohmann::json wait_injected_fault(double timeout_s) {
-    return wait_fault_since(peer_started_ns + 1'500'000'000, timeout_s);
+    return wait_fault_since(setup.socket_path, peer_started_ns + 1'500'000'000, timeout_s);
   }
   // The last command the peer applied (answered) before `before_s` of its wall time.
   double last_applied_before(double before_s) const {
@@ -112,10 +99,9 @@ struct LinkRun {
 // loaded machine: 10 ms period, 4 ms timeout, 8 failed transactions in a row tolerated (80 ms,
 // below safety.stale_timeout_s). Before issue 9 every late reply cost the connection.
 TEST(E2eLink, LateRepliesAreDiscardedAndCountedWithoutReconnectsOrFaults) {
-  const std::string tolerant = "    max_consecutive_failures: 8\n";
   LinkRun run("", 0.01, 0.004);
   run.start_peer({"--late-every", "500", "--late-factor", "1.5"});
-  run.start_daemon(tolerant);
+  run.start_daemon(kTolerant);
   const auto up = run.wait_state("running", 10.0);
   ASSERT_EQ(state_of(up), "running") << up.dump() << run.daemon->output();
   const auto end = Clock::now() + std::chrono::seconds(60);
@@ -286,9 +272,9 @@ TEST(E2eLink, LinkLostThenSigtermLogsTheTruthAboutTheOutput) {
   run.start_daemon();
   ASSERT_EQ(state_of(run.wait_state("running", 10.0)), "running") << run.daemon->output();
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
-  const std::int64_t killed_ns = LinkRun::unix_now_ns();
+  const std::int64_t killed_ns = unix_now_ns();
   run.peer->stop(SIGKILL);
-  const auto fault = run.wait_fault_since(killed_ns, 10.0);
+  const auto fault = wait_fault_since(run.setup.socket_path, killed_ns, 10.0);
   ASSERT_EQ(state_of(fault), "fault") << fault.dump();
   EXPECT_EQ(fault.value("output", ""), "unconfirmed") << fault.dump();
   const double held = run.last_applied_before(1e9);
@@ -389,9 +375,11 @@ TEST(E2eLink, DaqAbsentPastStartTimeoutExits69) {
 // is missing, must refuse before it opens the device: the peer it points at receives nothing
 // (before issue 9 it got two 0 V writes into the running bench's command stream).
 TEST(E2eLink, RefusedStartsNeverTouchTheDevice) {
-  LinkRun first;
+  // The running bench is configured as a lab would on a loaded machine: what is tested is the
+  // refused starts, not whether a 2 ms link hiccups (a stress-suite round faulted it at start-up).
+  LinkRun first("", 0.01, 0.004);
   first.start_peer({});
-  first.start_daemon();
+  first.start_daemon(kTolerant);
   ASSERT_EQ(state_of(first.wait_state("running", 10.0)), "running") << first.daemon->output();
 
   LinkRun second;
@@ -414,16 +402,7 @@ TEST(E2eLink, RefusedStartsNeverTouchTheDevice) {
   std::this_thread::sleep_for(std::chrono::milliseconds(200));
   EXPECT_TRUE(read_command_log(second.log).empty()) << "the second daemon wrote to its device";
   EXPECT_TRUE(read_command_log(third.log).empty()) << "the daemon without socket directory wrote";
-  // The bench's socket still answers for the first daemon. Not "running": with a 2 ms timeout
-  // on a loaded machine the first daemon's own link can hiccup into a fault that recovers by
-  // itself (a stress-suite round), which says nothing about the refused starts.
-  const auto still = status(first.setup.socket_path);
-  ASSERT_TRUE(still) << first.daemon->output();
-  EXPECT_EQ(still->value("config_file", ""), first.dir.file("d.yaml")) << still->dump();
-  if (state_of(*still) != "running") {
-    EXPECT_NE(still->value("fault_reason", "").find("no reply"), std::string::npos)
-        << still->dump();
-  }
+  EXPECT_EQ(state_of(*status(first.setup.socket_path)), "running");
 }
 
 // The device-side watchdog: the daemon feeds the DAQ's heartbeat register; when the daemon is
