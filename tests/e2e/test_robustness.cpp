@@ -34,24 +34,44 @@ LoopDelta measure(const DaemonProcess& daemon, const std::function<void()>& duri
   return d;
 }
 
-void expect_loop_unaffected(const LoopDelta& quiet, const LoopDelta& load, const char* what) {
+// The larger per-second rate of two quiet windows, one before and one after the load: a shared
+// machine's own hiccups (another test, a hypervisor's steal) come and go, and one quiet window
+// alone can catch a calm moment that the load window then is compared against.
+LoopDelta busier_of(const LoopDelta& a, const LoopDelta& b) {
+  const auto rate = [](const LoopDelta& d) {
+    return static_cast<double>(d.overruns + d.missed) / std::max(d.seconds, 1e-3);
+  };
+  return rate(a) >= rate(b) ? a : b;
+}
+
+void expect_loop_unaffected(const DaemonProcess& daemon, const LoopDelta& quiet_before,
+                            const LoopDelta& load, const char* what) {
+  const LoopDelta quiet_after = measure(daemon, [] { sleep_s(3.0); });
+  const LoopDelta quiet = busier_of(quiet_before, quiet_after);
   std::printf(
-      "%s: quiet %.1f s: %llu cycles, %llu overruns, %llu missed; load %.1f s: %llu cycles, "
-      "%llu overruns, %llu missed\n",
+      "%s: quiet %.1f s: %llu cycles, %llu overruns, %llu missed (before %llu/%llu, after "
+      "%llu/%llu); load %.1f s: %llu cycles, %llu overruns, %llu missed\n",
       what, quiet.seconds, static_cast<unsigned long long>(quiet.cycles),
       static_cast<unsigned long long>(quiet.overruns),
-      static_cast<unsigned long long>(quiet.missed), load.seconds,
+      static_cast<unsigned long long>(quiet.missed),
+      static_cast<unsigned long long>(quiet_before.overruns),
+      static_cast<unsigned long long>(quiet_before.missed),
+      static_cast<unsigned long long>(quiet_after.overruns),
+      static_cast<unsigned long long>(quiet_after.missed), load.seconds,
       static_cast<unsigned long long>(load.cycles), static_cast<unsigned long long>(load.overruns),
       static_cast<unsigned long long>(load.missed));
   // Loose on purpose: this machine is shared. The loop must keep cycling at ~1 kHz and not lose
-  // many more periods than when nobody talks to it.
+  // many more periods than when nobody talks to it. The slack, 50 plus 1 % of the load window's
+  // cycles, absorbs a loaded CI machine's bursts (82 overruns in 6000 cycles against 3 in a calm
+  // 3 s baseline were seen once); a server that blocked or starved the loop costs thousands.
   EXPECT_GT(static_cast<double>(load.cycles), 0.8 * 1000.0 * load.seconds) << what;
   const double scale = load.seconds / std::max(quiet.seconds, 1e-3);
+  const double slack = 50.0 + 0.01 * static_cast<double>(load.cycles);
   EXPECT_LE(static_cast<double>(load.missed),
-            3.0 * scale * static_cast<double>(quiet.missed) + 50.0)
+            3.0 * scale * static_cast<double>(quiet.missed) + slack)
       << what;
   EXPECT_LE(static_cast<double>(load.overruns),
-            3.0 * scale * static_cast<double>(quiet.overruns) + 50.0)
+            3.0 * scale * static_cast<double>(quiet.overruns) + slack)
       << what;
 }
 
@@ -147,7 +167,7 @@ TEST(Robustness, FuzzedClientsGetErrorsAndTheLoopIsUnaffected) {
   EXPECT_EQ(st.value("class", ""), "STATUS") << st.dump();
   EXPECT_EQ(st.value("state", ""), "running") << st.dump();
   EXPECT_TRUE(daemon.running());
-  expect_loop_unaffected(quiet, load, "fuzz");
+  expect_loop_unaffected(daemon, quiet, load, "fuzz");
 }
 
 // Issue 3, item 8: 64 clients polling `estimate` as fast as they can plus four 100 Hz watch
@@ -207,7 +227,7 @@ TEST(Robustness, SixtyFourClientsAreServedAndTheLoopKeepsCycling) {
   for (int i = 0; i < 4; ++i)
     EXPECT_GE(streamed[i], 20) << "watch stream " << i << " (100 Hz × 4 s) starved";
   std::printf("%d estimates served in %.1f s\n", total, load.seconds);
-  expect_loop_unaffected(quiet, load, "64 clients");
+  expect_loop_unaffected(daemon, quiet, load, "64 clients");
   EXPECT_TRUE(daemon.running());
 }
 
@@ -275,7 +295,7 @@ TEST(Robustness, NonReadingClientsAreDroppedOthersServed) {
   EXPECT_TRUE(flooder_dropped) << "a flooder that never reads must be dropped";
   EXPECT_GT(normal_replies, 200) << "the normal client was starved";
   EXPECT_LT(worst_reply_s, 1.0) << "a status reply took " << worst_reply_s << " s";
-  expect_loop_unaffected(quiet, load, "non-readers");
+  expect_loop_unaffected(daemon, quiet, load, "non-readers");
   EXPECT_EQ(daemon.status().value("state", ""), "running");
 }
 
