@@ -46,8 +46,7 @@ struct Options {
   double watch_rate_hz = 100.0;
   double duration_s = 10.0;
   bool echo_server = false;
-  // What each client sends, one line; another spelling of the same request (e.g. with spaces)
-  // measures the server's JSON parser path beside its verbatim fast path in the same run.
+  // What each client sends, one line (e.g. another request, or the same one spelled differently).
   std::string request = R"({"request":"estimate"})";
 };
 

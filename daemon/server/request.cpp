@@ -4,9 +4,7 @@
 #include <cmath>
 #include <initializer_list>
 #include <nlohmann/json.hpp>
-#include <span>
 #include <string>
-#include <string_view>
 
 namespace scp::daemon::server {
 namespace {
@@ -26,13 +24,6 @@ constexpr std::array<Entry, 6> kRequests{{
     {"reset", RequestKind::reset},
     {"excitation", RequestKind::excitation},
     {"clear-fault", RequestKind::clear_fault},
-}};
-
-constexpr std::array<VerbatimRequest, 4> kVerbatimRequests{{
-    {R"({"request":"estimate"})", RequestKind::estimate},
-    {R"({"request":"status"})", RequestKind::status},
-    {R"({"request": "estimate"})", RequestKind::estimate},
-    {R"({"request": "status"})", RequestKind::status},
 }};
 
 ParsedRequest fail(std::string message) {
@@ -76,10 +67,6 @@ std::string check_members(const json& object, const char* request,
 
 }  // namespace
 
-std::span<const VerbatimRequest> verbatim_requests() noexcept {
-  return kVerbatimRequests;
-}
-
 const char* request_name(RequestKind kind) noexcept {
   for (const Entry& entry : kRequests)
     if (entry.kind == kind) return entry.name;
@@ -96,19 +83,6 @@ ParsedRequest parse_request(std::string_view line) {
   if (const auto nul = line.find('\0'); nul != std::string_view::npos)
     return fail("malformed request: NUL byte at offset " + std::to_string(nul) +
                 "; send one JSON object per line, e.g. {\"request\":\"status\"}");
-  // The requests clients repeat many times a second, in the exact bytes that scp-estimatorctl
-  // (compact) and Python's json.dumps (", " and ": ") send, skip building a JSON document: the
-  // parser's lexer, its std::map and their allocations were ~14 % of the socket server's time
-  // under 64 `estimate` clients (perf). Any other spelling takes the parser below and gets the
-  // same answer (tests/server/test_request.cpp checks that every verbatim line does).
-  for (const auto& [text, kind] : kVerbatimRequests) {
-    if (line == text) {
-      ParsedRequest out;
-      out.ok = true;
-      out.kind = kind;
-      return out;
-    }
-  }
   // The framing layer strips '\n'; a CRLF client leaves '\r', which JSON treats as whitespace.
   json doc;
   try {

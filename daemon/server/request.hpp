@@ -3,7 +3,6 @@
 // no I/O so that it can be unit-tested and fuzzed: any byte string gives either a request or an
 // error message that names what was wrong and what to send instead.
 
-#include <span>
 #include <string>
 #include <string_view>
 
@@ -21,14 +20,6 @@ struct ParsedRequest {
 
 inline constexpr double kMinWatchHz = 0.1;
 inline constexpr double kMaxWatchHz = 1000.0;
-
-// Lines recognized byte for byte, without the JSON parser (request.cpp says why); each must parse
-// to the same request the parser gives.
-struct VerbatimRequest {
-  std::string_view text;
-  RequestKind kind;
-};
-std::span<const VerbatimRequest> verbatim_requests() noexcept;
 
 // Throws only std::bad_alloc.
 ParsedRequest parse_request(std::string_view line);

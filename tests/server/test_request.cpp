@@ -29,25 +29,6 @@ TEST(Request, SimpleRequests) {
   EXPECT_TRUE(parse_request("{\"request\":\"status\"}\r").ok);  // CRLF clients
 }
 
-// The verbatim fast path must answer exactly as the parser does: a trailing space sends the same
-// request through the parser.
-TEST(Request, VerbatimLinesParseAsTheParserDoes) {
-  ASSERT_FALSE(verbatim_requests().empty());
-  for (const VerbatimRequest& v : verbatim_requests()) {
-    const ParsedRequest fast = parse_request(v.text);
-    const ParsedRequest parsed = parse_request(std::string(v.text) + " ");
-    ASSERT_TRUE(parsed.ok) << v.text << ": " << parsed.error;
-    EXPECT_TRUE(fast.ok) << v.text;
-    EXPECT_EQ(fast.kind, parsed.kind) << v.text;
-    EXPECT_EQ(fast.kind, v.kind) << v.text;
-    EXPECT_EQ(fast.rate_hz, parsed.rate_hz) << v.text;
-    EXPECT_EQ(fast.enable, parsed.enable) << v.text;
-    // Not a prefix match: one byte more or less is not the same line.
-    EXPECT_FALSE(parse_request(std::string(v.text) + "x").ok) << v.text;
-    EXPECT_FALSE(parse_request(v.text.substr(0, v.text.size() - 1)).ok) << v.text;
-  }
-}
-
 TEST(Request, Watch) {
   ParsedRequest r = parse_request(R"({"request":"watch","rate_hz":250})");
   ASSERT_TRUE(r.ok) << r.error;
