@@ -361,7 +361,10 @@ int run_service(const config::DaemonConfig& cfg) {
   if (!notifier.problem().empty()) spdlog::warn("systemd notification: {}", notifier.problem());
 
   LoopThread body{*loop, notifier, cfg, *lateness, {}, {}, {}, {}, {}};
+  // The loop's larger stack, then the small default again for threads started later.
+  const bool loop_stack_set = rt::set_default_thread_stack(rt::kLoopThreadStackBytes);
   std::thread loop_thread([&body] { body.run(); });
+  if (loop_stack_set) rt::set_default_thread_stack(rt::kThreadStackBytes);
   // Whatever way this function is left (an exception included), the loop stops and the output
   // goes to 0 V before the driver is destroyed.
   struct StopGuard {

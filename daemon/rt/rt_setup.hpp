@@ -25,13 +25,16 @@ struct RtSettings {
 // settings that can never work (priority out of 0..99, a negative or too large CPU number).
 std::vector<std::string> apply_rt_settings(const RtSettings& settings);
 
-// Stack size of the threads the daemon starts (loop, socket server, refinement worker). glibc's
-// default is RLIMIT_STACK, usually 8 MiB, and under mlockall(MCL_FUTURE) every byte of a new
-// thread's stack is faulted in and locked: 8 MiB × 3 threads of locked RAM, of which each thread
-// uses tens of KiB (measured: 24 MiB of a 60 MiB RSS). 768 KiB leaves the loop's 512 KiB stack
-// prefault (¾ of the stack at most, rt_setup.cpp) and ample room for the others' fixed-size
-// Eigen frames. Call before starting threads; returns false if glibc refused.
-inline constexpr std::size_t kThreadStackBytes = std::size_t{768} << 10;
+// Stack size of the threads the daemon starts. glibc's default is RLIMIT_STACK, usually 8 MiB,
+// and under mlockall(MCL_FUTURE) every byte of a new thread's stack is faulted in and locked:
+// 8 MiB × 3 threads of locked RAM (measured: 24 MiB of a 60 MiB RSS). The loop thread gets
+// 768 KiB: its 512 KiB prefault (¾ of the stack at most, rt_setup.cpp) and room above it. Every
+// other thread (socket server, refinement worker, recorder) gets 256 KiB; measured without
+// mlockall after fits and socket traffic, they touched 12–28 KiB (README, "Memory").
+// set_default_thread_stack() applies to the threads started after it; returns false if glibc
+// refused.
+inline constexpr std::size_t kLoopThreadStackBytes = std::size_t{768} << 10;
+inline constexpr std::size_t kThreadStackBytes = std::size_t{256} << 10;
 bool set_default_thread_stack(std::size_t bytes) noexcept;
 
 }  // namespace scp::rt

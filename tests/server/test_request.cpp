@@ -80,6 +80,37 @@ TEST(Request, Malformed) {
   expect_error(R"({"request":"reset","x":1})", "it takes no members");
 }
 
+// The request is read without a DOM (request.cpp, RequestReader); these are the answers a DOM
+// gave: the last of duplicated members wins, nested values are skipped whatever their keys, the
+// unknown member named is the first in key order, and a number out of range is quoted as sent.
+TEST(Request, ReadsLikeADocument) {
+  ParsedRequest r = parse_request(R"({"request":"status","request":"estimate"})");
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_EQ(r.kind, RequestKind::estimate);
+  expect_error(R"({"request":"status","request":{"request":"status"}})",
+               "member 'request' must be a string, got an object");
+  r = parse_request(R"({"request":{"x":[1,{"request":"watch"}]},"request":"watch","rate_hz":5})");
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_EQ(r.kind, RequestKind::watch);
+  EXPECT_DOUBLE_EQ(r.rate_hz, 5.0);
+  expect_error(R"({"nested":{"request":"status"}})", "missing member 'request'");
+  expect_error(R"({"zeta":1,"request":"status","alpha":2})", "unknown member 'alpha'");
+  expect_error(R"({"request":"excitation","enable":true,"rate_hz":3,"beta":1})",
+               "unknown member 'beta'");
+  expect_error(R"({"request":"excitation","enable":true,"rate_hz":3})",
+               "unknown member 'rate_hz' in request 'excitation'; allowed members: enable");
+  expect_error(R"({"request":"watch","rate_hz":2000})", "is 2000, outside the allowed range");
+  expect_error(R"({"request":"watch","rate_hz":0.05})", "is 0.05, outside the allowed range");
+  expect_error(R"({"request":"watch","rate_hz":[1]})",
+               "must be a number in [0.1, 1000], got an array");
+  expect_error(R"({"request":"watch","rate_hz":1e999})", "number overflow");
+  expect_error(R"({"request":"watch","enable":null})", "must be true or false, got null");
+  expect_error(R"({"request":"status"} {"request":"status"})", "malformed JSON");
+  r = parse_request(R"({"request":"watch","enable":true,"enable":false})");
+  ASSERT_TRUE(r.ok) << r.error;
+  EXPECT_FALSE(r.enable);
+}
+
 // Bytes after a NUL used to be ignored by the parser ("status\0garbage" answered as status).
 TEST(Request, NulAnywhereIsAnError) {
   expect_error(std::string("{\"request\":\"status\"}\0garbage", 28), "NUL byte at offset 20");
