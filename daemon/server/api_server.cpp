@@ -586,15 +586,9 @@ void ApiServer::Impl::handle_line(std::uint64_t id, Client& client, std::string_
 
 void ApiServer::Impl::send(Client& client, std::string_view text) {
   if (client.dead) return;
-  if (client.out.empty()) {
-    // Nothing queued before it: straight from the caller's buffer, and only what the socket
-    // did not take is copied (an ESTIMATE line is copied into `out` and erased again otherwise).
-    text.remove_prefix(send_some(client, text));
-    if (client.dead || text.empty()) {
-      if (client.closing && !client.dead) client.dead = true;
-      return;
-    }
-  }
+  // Nothing queued before it: straight from the caller's buffer, and only what the socket did
+  // not take is copied (an ESTIMATE line was copied into `out` and erased again otherwise).
+  if (client.out.empty()) text.remove_prefix(send_some(client, text));
   client.out.append(text);
   flush(client);
   // A client that stops reading must not make the server hoard memory for it.
