@@ -282,6 +282,20 @@ int serve_modbus(const SimDaqOptions& o, std::atomic<bool>& stop) {
   const auto writes_command = [&](const std::uint8_t* q) {
     return writes_registers(q, modbus_get_header_length(ctx), map.command.address, command_count);
   };
+  // The voltage a write request (function 6 or 16) carries for the command register.
+  const auto commanded_in = [&](const std::uint8_t* q, int header) {
+    std::array<std::uint16_t, 2> regs{};
+    const int f = q[static_cast<std::size_t>(header)];
+    const int at = header + (f == 0x06 ? 3 : 6);
+    for (int i = 0; i < command_count && i < 2; ++i) {
+      regs[static_cast<std::size_t>(i)] =
+          static_cast<std::uint16_t>((q[static_cast<std::size_t>(at + 2 * i)] << 8) |
+                                     q[static_cast<std::size_t>(at + 2 * i + 1)]);
+    }
+    modbus::CommandRegister c = map.command;
+    c.address = 0;
+    return decode_command(c, regs.data());
+  };
   const auto log_command = [&](double t, double volts, const char* note) {
     if (log == nullptr) return;
     std::fprintf(log, "%lld,%.6f,%.9g%s%s\n", static_cast<long long>(k), t, volts,
@@ -383,17 +397,7 @@ int serve_modbus(const SimDaqOptions& o, std::atomic<bool>& stop) {
         ++dropped;  // a dead slave: the request is read and never answered
         if (writes_command(query.data())) {
           // What the client tried to command, as a DAQ would see it on the wire, not applied.
-          std::array<std::uint16_t, 2> regs{};
-          const int f = query[static_cast<std::size_t>(header)];
-          const int at = header + (f == 0x06 ? 3 : 6);
-          for (int i = 0; i < command_count && i < 2; ++i) {
-            regs[static_cast<std::size_t>(i)] =
-                static_cast<std::uint16_t>((query[static_cast<std::size_t>(at + 2 * i)] << 8) |
-                                           query[static_cast<std::size_t>(at + 2 * i + 1)]);
-          }
-          modbus::CommandRegister c = map.command;
-          c.address = 0;
-          log_command(t, decode_command(c, regs.data()), "unanswered");
+          log_command(t, commanded_in(query.data(), header), "unanswered");
         }
         continue;
       }
@@ -442,14 +446,16 @@ int serve_modbus(const SimDaqOptions& o, std::atomic<bool>& stop) {
         // daemon's transaction midpoint by half of it. Counted for the summary.
         if (monotonic_ns() - w.reply_ns > 500'000) ++late_replies;
       }
+      // Logged before the reply: a test that SIGKILLs us right after the client saw the
+      // acknowledgement must find that write in the log.
+      if (writes_command(query.data())) log_command(t, commanded_in(query.data(), header), "");
       modbus_reply(ctx, query.data(), rc, mb);
       if (o.wallclock && writes_command(query.data())) {
         plant.write_voltage(decode_command(map.command, mb->tab_registers));  // from t_event on
         ++k;
       }
-      if (writes_command(query.data())) {
-        log_command(t, decode_command(map.command, mb->tab_registers), "");
-        if (o.lockstep) step();  // the reply went out first: the client is not kept waiting
+      if (writes_command(query.data()) && o.lockstep) {
+        step();  // the reply went out first: the client is not kept waiting
       }
     }
     if (!tcp) modbus_set_socket(ctx, rtu_fd);
