@@ -1,6 +1,9 @@
 // The staged output-error fit of refine/fit.hpp. Stages, each a Levenberg–Marquardt run on
 // streamed normal equations (refine/levenberg_marquardt.hpp):
 //   (a) thermal: θ5, θ6, T̄0 on T̄ alone (the thermal block does not see x);
+//   (a') with FitSettings::max_input_delay_s, the voltage's delay d: the thermal stage's cost
+//       profiled along d (golden section, then the parabola's vertex) and σ_d from its curvature;
+//       every later pass switches the voltage d later than recorded;
 //   (b) the common scale s of θ1..θ4: scaling θ1..θ4 together changes only the weight of the
 //       inertia term (the fast pole), the direction the data determine worst and the one along
 //       which a biased start is off (the paper law under noise: θ1..θ4 × ~0.17). A scale search
@@ -12,7 +15,8 @@
 //       free (with one of them known there is no common scale to search);
 //   (c) mechanical: θ1..θ4, x0, ẋ0 on x with T̄ simulated from the thermal fit;
 //   (d) joint: every free parameter on x and T̄ weighted by 1/σ̂², σ̂² = RSS/(N − p) per channel
-//       re-estimated until it settles.
+//       re-estimated until it settles; with FitSettings::sample_timing_jitter, each sample weighted
+//       by (Σ + s·g gᵀ)⁻¹ instead and (σ̂x², σ̂T̄², s) re-estimated by Fisher scoring.
 // Then one pass at the solution gives JᵀWJ and the score's long-run covariance (covariance.hpp).
 
 #include "refine/fit.hpp"
@@ -111,7 +115,8 @@ class Budget {
  public:
   Budget(std::span<const WindowSample> window, const FitSettings& settings)
       : max_evaluations_(std::max(1, settings.max_evaluations)),
-        max_substeps_(2 * static_cast<long>(max_evaluations_) * static_cast<long>(window.size())),
+        max_substeps_(substeps_per_sample(settings) * static_cast<long>(max_evaluations_) *
+                      static_cast<long>(window.size())),
         cancel_(settings.cancel) {
     const double span = window.back().t - window.front().t;
     mean_interval_ = span / static_cast<double>(window.size() - 1);
@@ -128,6 +133,7 @@ class Budget {
 
   PassResult pass(std::span<const WindowSample> w, const Vector9& p, PassSettings ps) {
     ps.cancel = cancel_;
+    ps.input_delay = input_delay_;
     const double span = w.back().t - w.front().t;
     ps.max_substeps = static_cast<long>(std::ceil(max_pole() * span / kMaxStiffnessPerSubstep)) +
                       2 * static_cast<long>(w.size());
@@ -137,7 +143,17 @@ class Budget {
     return r;
   }
 
+  // The work budget's sub-steps per sample and pass, on average over the fit. 2 covers a fit at
+  // 1 kHz (the paper's fast pole: one sub-step per 1 ms interval) with room to spare. On a link
+  // the fit runs up to 8 rounds of the joint stage instead of 4, at 100 Hz, where a 10 ms interval
+  // cut in two at the landing takes ~15 sub-steps: measured, 2 stopped a converging fit ("work
+  // budget spent") after 100 passes.
+  static long substeps_per_sample(const FitSettings& s) { return s.sample_timing_jitter ? 8 : 2; }
+
   double max_pole() const { return kMaxPolePerSample / mean_interval_; }
+  // Every pass from here on switches the voltage this much later than recorded.
+  void set_input_delay(double d) { input_delay_ = d; }
+  double input_delay() const { return input_delay_; }
   double mean_interval() const { return mean_interval_; }
   int evaluations() const { return evaluations_; }
 
@@ -148,6 +164,7 @@ class Budget {
   double mean_interval_ = 1.0;
   int evaluations_ = 0;
   long substeps_ = 0;
+  double input_delay_ = 0.0;
 };
 
 struct StageResult {
@@ -269,6 +286,137 @@ bool stable_at(const Vector9& p, const PassResult& pass, const TbarRange& range)
   return p[0] + p[1] * lo > 0.0 && p[0] + p[1] * hi > 0.0;
 }
 
+// How far before its recorded instant a switch can be moved (a negative delay): as far as the
+// earliest switch recorded inside its interval allows, at most `limit`. A DAC that switches at
+// the samples records its switches there, and one cannot move into the interval before (the
+// command was computed from that sample: causality says d ≥ 0 there).
+double earliest_switch_delay(std::span<const WindowSample> w, double limit) {
+  double lead = limit;
+  bool inside = false;
+  for (std::size_t k = 1; k < w.size(); ++k) {
+    const double since = w[k].voltage_since;
+    if (since > w[k - 1].t && since < w[k].t) {
+      lead = std::min(lead, since - w[k - 1].t);
+      inside = true;
+    }
+  }
+  return inside ? lead : 0.0;
+}
+
+struct DelayEstimate {
+  bool ok = false;
+  double delay = 0.0;  // s
+  double sigma = 0.0;  // s
+  bool at_limit = false;
+  Vector9 p = Vector9::Zero();  // the thermal fit at `delay`
+};
+
+// The voltage's delay d from T̄ alone (FitSettings::max_input_delay_s): the profile of the thermal
+// cost, (θ5, θ6, T̄0) refitted at each d, minimized by golden section over [−limit, limit] (it is
+// a parabola near its minimum: T̄'s error is linear in a small shift of V²), then σ_d from its
+// curvature, Δχ² = 1. Its passes are thermal-only (no mechanical sub-steps, ~1/10 of a
+// mechanical pass) and count against a budget of their own, so that a fit with a delay to find
+// has the same budget left for θ1..θ4 as one without.
+DelayEstimate estimate_input_delay(std::span<const WindowSample> window, const Vector9& start,
+                                   const std::array<bool, 6>& known, double limit, int max_it,
+                                   const FitSettings& settings) {
+  FitSettings own = settings;
+  own.max_evaluations = 2000;
+  Budget budget(window, own);
+  Coordinates c;
+  for (int i : {4, 5})
+    if (!known[i]) c.index.push_back(i);
+  c.index.push_back(kTbar0);
+  c.base = start;
+  PassSettings ps;
+  ps.weight = {0.0, 1.0};
+  ps.thermal_only = true;
+  const double inf = std::numeric_limits<double>::infinity();
+  DelayEstimate out;
+  out.p = start;
+  double best_cost = inf;
+  // The thermal fit at d, started from the best one so far (a few iterations each).
+  auto fit_at = [&](double d, Vector9& p_at) {
+    budget.set_input_delay(d);
+    if (budget.stop() != nullptr) return inf;
+    c.base = out.p;
+    const StageResult r = run_stage(window, c, ps, max_it, budget);
+    p_at = r.p;
+    return r.pass.finite ? r.pass.cost : inf;
+  };
+  auto cost_at = [&](double d) {
+    Vector9 p_at = out.p;
+    const double cost = fit_at(d, p_at);
+    if (cost < best_cost) {
+      best_cost = cost;
+      out.delay = d;
+      out.p = p_at;
+    }
+    return cost;
+  };
+  // Golden section to 0.5 µs, then the vertex of the parabola the curvature is measured on: T̄
+  // resolves d to ~0.3 µs on a clean link (docs/numerics.md).
+  const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+  const double lowest = -earliest_switch_delay(window, limit);
+  double a = lowest, b = limit;
+  double x1 = b - g * (b - a), x2 = a + g * (b - a);
+  double f1 = cost_at(x1), f2 = cost_at(x2);
+  for (int i = 0; i < 80 && b - a > 0.5e-6 && budget.stop() == nullptr; ++i) {
+    if (f1 < f2) {
+      b = x2;
+      x2 = x1;
+      f2 = f1;
+      x1 = b - g * (b - a);
+      f1 = cost_at(x1);
+    } else {
+      a = x1;
+      x1 = x2;
+      f1 = f2;
+      x2 = a + g * (b - a);
+      f2 = cost_at(x2);
+    }
+  }
+  if (!std::isfinite(best_cost) || budget.stop() != nullptr) return out;
+  double d = out.delay;
+  // Curvature over ±h with h near σ_d itself (the parabola is exact there; far smaller steps
+  // drown in the solver's tolerance), Δχ² = 1 at σ_d; a side beyond the search range is the
+  // range's end.
+  double h = std::min(1e-6, limit / 4);
+  for (int round = 0; round < 8 && budget.stop() == nullptr; ++round) {
+    const double c0 = best_cost;
+    const double var_t = c0 / dof(window.size(), c.index.size() + 1);
+    const double lo = std::max(lowest, d - h), hi = std::min(limit, d + h);
+    const double cm = lo < d ? cost_at(lo) : c0, cp = hi > d ? cost_at(hi) : c0;
+    // The parabola through (lo, cm), (d, c0), (hi, cp).
+    const double sl = (c0 - cm) / std::max(d - lo, 1e-300),
+                 sr = (cp - c0) / std::max(hi - d, 1e-300);
+    const double curvature = 2.0 * (sr - sl) / std::max(hi - lo, 1e-300);
+    if (!(curvature > 0.0) || !std::isfinite(curvature) || lo >= hi) {
+      h *= 10.0;  // flat at this scale: the noise hides d more than that
+      if (h > limit) break;
+      continue;
+    }
+    out.sigma = std::sqrt(2.0 * var_t / curvature);
+    out.ok = true;
+    const double vertex = 0.5 * (lo + hi) - 0.5 * (sl + sr) / curvature;
+    const bool settled = out.sigma < 4.0 * h && out.sigma > 0.25 * h;
+    if (settled && vertex > lo && vertex < hi) {
+      Vector9 p_at = out.p;
+      const double cv = fit_at(vertex, p_at);
+      if (cv <= best_cost) {
+        best_cost = cv;
+        out.delay = d = vertex;
+        out.p = p_at;
+      }
+    }
+    if (settled) break;
+    h = std::clamp(out.sigma, 1e-9, limit / 4);
+    d = out.delay;
+  }
+  out.at_limit = std::abs(out.delay) > limit * (1.0 - 1e-6);
+  return out;
+}
+
 }  // namespace
 
 FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
@@ -334,6 +482,7 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
   const double floor_x = variance_floor(window, 0), floor_t = variance_floor(window, 1);
 
   TbarRange range;
+  bool delay_at_limit = false;
   // (a) thermal.
   {
     Coordinates c;
@@ -352,6 +501,23 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
       range = {r.pass.tbar_min, r.pass.tbar_max};
     }
     if (r.stopped) return stopped_here(budget.stop());
+  }
+  // (a') the voltage's delay, when its timing is not trusted (FitSettings::max_input_delay_s).
+  if (settings.max_input_delay_s > 0.0) {
+    const DelayEstimate de =
+        estimate_input_delay(window, p, known, settings.max_input_delay_s, max_it, settings);
+    if (settings.cancel != nullptr && settings.cancel->load(std::memory_order_relaxed))
+      return stopped_here("cancelled");
+    if (!de.ok) {
+      result.message = "the voltage's delay could not be estimated from T (no heating?)";
+      return stopped_here(result.message);
+    }
+    p = de.p;
+    budget.set_input_delay(de.delay);
+    result.input_delay_estimated = true;
+    result.input_delay_s = de.delay;
+    result.input_delay_sigma_s = de.sigma;
+    delay_at_limit = de.at_limit;
   }
   // A start whose damping θ1 + θ2·T̄ turns negative somewhere in the thermal fit's T̄ range
   // cannot be simulated (the paper law under noise gives such θ̂: light-stiff/N2 had θ̂2 = −0.16
@@ -467,26 +633,62 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
   free_x += 3;
   free_t += (free[4] ? 1 : 0) + (free[5] ? 1 : 0);
   StageResult joint;
-  for (int round = 0; round < 4; ++round) {
+  // With the samples' timing jitter (FitSettings::sample_timing_jitter) its variance s is
+  // estimated with the two noise variances by Fisher scoring, from s = 0 (the first step is then
+  // the moment estimate); EM would crawl toward a noise variance near 0 (noise-free sensors),
+  // halving it each round.
+  const bool timing = settings.sample_timing_jitter;
+  double timing_var = 0.0;
+  const auto timing_settings = [&](PassSettings& ps) {
+    ps.timing = timing;
+    ps.timing_variance = timing_var;
+    ps.timing_reference = p;
+  };
+  const int rounds = timing ? 8 : 4;
+  for (int round = 0; round < rounds; ++round) {
     Coordinates c;
     for (int i = 0; i < kParams; ++i)
       if (free[i]) c.index.push_back(i);
     c.base = p;
     PassSettings ps;
     ps.weight = {1.0 / var_x, 1.0 / var_t};
+    timing_settings(ps);
     joint = run_stage(window, c, ps, max_it, budget, range);
     iterations += joint.iterations;
     if (joint.pass.finite) p = joint.p;
     if (joint.stopped) return stopped_here(budget.stop());
     if (!joint.pass.finite) break;
-    const double new_var_x = std::max(joint.pass.rss[0] / dof(n, free_x), floor_x);
-    const double new_var_t = std::max(joint.pass.rss[1] / dof(n, free_t), floor_t);
-    const bool settled =
+    double new_var_x = std::max(joint.pass.rss[0] / dof(n, free_x), floor_x);
+    double new_var_t = std::max(joint.pass.rss[1] / dof(n, free_t), floor_t);
+    bool settled =
         std::abs(new_var_x / var_x - 1.0) < 0.02 && std::abs(new_var_t / var_t - 1.0) < 0.02;
+    if (timing) {
+      const Eigen::Vector3d v(var_x, var_t, timing_var);
+      const Eigen::Vector3d step =
+          joint.pass.variance_information.ldlt().solve(joint.pass.variance_score);
+      Eigen::Vector3d next = v;
+      if (step.allFinite()) next += step;
+      // A step can overshoot toward 0: at most a factor 10 down per round, never below the floors.
+      new_var_x = std::max({next[0], 0.1 * var_x, floor_x});
+      new_var_t = std::max({next[1], 0.1 * var_t, floor_t});
+      const double new_s = std::max({next[2], 0.1 * timing_var, 0.0});
+      // A noise variance below 1 % of what the timing error puts into its channel no longer moves
+      // the weights (noise-free sensors: it wanders near its floor).
+      const auto variance_settled = [&](double before, double after, int ch) {
+        const double timing_share =
+            new_s * joint.pass.speed_squares[static_cast<std::size_t>(ch)] / static_cast<double>(n);
+        return std::abs(after / before - 1.0) < 0.02 ||
+               std::max(before, after) < 0.01 * timing_share;
+      };
+      settled = variance_settled(var_x, new_var_x, 0) && variance_settled(var_t, new_var_t, 1) &&
+                std::abs(new_s - timing_var) <= 0.02 * std::max(new_s, timing_var);
+      timing_var = new_s;
+    }
     var_x = new_var_x;
     var_t = new_var_t;
     if (settled) break;
   }
+  result.sample_timing_sigma_s = std::sqrt(timing_var);
   result.iterations = iterations;
   result.evaluations = budget.evaluations();
   result.theta = p.head<6>();
@@ -505,6 +707,7 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
                                          : automatic_hac_lags(n, std::max(rho_x, rho_t));
   PassSettings ps;
   ps.weight = {1.0 / var_x, 1.0 / var_t};
+  timing_settings(ps);
   ps.hac_bandwidth = lags + 1;
   const PassResult final_pass = budget.pass(window, p, ps);
   result.evaluations = budget.evaluations();
@@ -515,18 +718,36 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
   result.hac_lags = lags;
   result.covariance_white = white.topLeftCorner<6, 6>();
   result.covariance = hac.topLeftCorner<6, 6>();
+  if (result.input_delay_estimated && white_ok && result.input_delay_sigma_s > 0.0) {
+    // What σ_d does to θ: the Gauss–Newton step from this solution to the fit at d̂ + σ_d (one
+    // pass), added to the covariance as an independent error (the delay comes from T̄'s fit,
+    // whose noise the rest of the covariance already counts only through θ5, θ6).
+    PassSettings shifted = ps;
+    shifted.hac_bandwidth = 0;
+    budget.set_input_delay(result.input_delay_s + result.input_delay_sigma_s);
+    const PassResult sp = budget.pass(window, p, shifted);
+    budget.set_input_delay(result.input_delay_s);
+    if (sp.cancelled) return stopped_here("cancelled");
+    if (sp.finite) {
+      const Vector6 shift = (white * (sp.jtwr - final_pass.jtwr)).head<6>();
+      result.covariance_white += shift * shift.transpose();
+      result.covariance += shift * shift.transpose();
+    }
+  }
   result.sigma_white = result.covariance_white.diagonal().cwiseMax(0.0).cwiseSqrt();
   result.sigma = result.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
   result.residual_rms = Vector2(std::sqrt(final_pass.rss[0] / static_cast<double>(n)),
                                 std::sqrt(final_pass.rss[1] / static_cast<double>(n)));
-  result.noise_sigma = Vector2(std::sqrt(final_pass.rss[0] / dof(n, free_x)),
-                               std::sqrt(final_pass.rss[1] / dof(n, free_t)));
+  // The sensor noise alone: with the timing jitter estimated, its variance components.
+  result.noise_sigma = timing ? Vector2(std::sqrt(var_x), std::sqrt(var_t))
+                              : Vector2(std::sqrt(final_pass.rss[0] / dof(n, free_x)),
+                                        std::sqrt(final_pass.rss[1] / dof(n, free_t)));
   const bool stable = stable_at(p, final_pass, range);
   const bool resolved = stiffness(p, std::min(final_pass.tbar_min, range.lo),
                                   std::max(final_pass.tbar_max, range.hi)) *
                             budget.mean_interval() <=
                         kUnresolvedPolePerSample;
-  result.converged = joint.converged && stable && hac_ok && resolved;
+  result.converged = joint.converged && stable && hac_ok && resolved && !delay_at_limit;
   if (!stable)
     result.message = "model unstable at the fit";
   else if (!resolved)
@@ -535,6 +756,10 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
         "determine the common scale of theta1..theta4 (the inertia)";
   else if (!hac_ok)
     result.message = "covariance singular: a free parameter is not excited";
+  else if (delay_at_limit)
+    result.message =
+        "the voltage's delay is at the search limit (FitSettings::max_input_delay_s): its timing "
+        "is off by more than that";
   else
     result.message = joint.message;
   return result;

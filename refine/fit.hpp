@@ -61,6 +61,21 @@ struct FitSettings {
   // when it reads true the fit returns converged = false, "cancelled", within about a
   // millisecond of simulation. The daemon's worker points it at its stop flag.
   const std::atomic<bool>* cancel = nullptr;
+  // > 0: the voltage's timing relative to the samples is known only to within this (s), and a
+  // delay d ∈ [−this, this] of every switch is estimated. The common scale of θ1..θ4 (the inertia)
+  // is a sub-millisecond lag between heating and motion (the paper's fast pole: 0.8 ms), so x
+  // cannot tell it from a delay of the voltage: 130 µs of unmodelled output latency costs 15 % in
+  // θ1..θ4, while θ5, θ6 barely notice. T̄ can tell: its response to V² has no fast pole, so d is
+  // found from T̄ alone (the thermal stage refitted along d), the rest of the fit uses it, and its
+  // uncertainty is added to θ's covariance. 0: the recorded instants are exact (a simulated or
+  // sample-synchronous DAC; on noisy T̄ a free d would cost θ1..θ4 more than it could remove).
+  double max_input_delay_s = 0.0;
+  // true: the samples' instants are known only to within a random error (a link's jitter), whose
+  // variance is estimated with the noise variances and which the fit weights out of each
+  // sample's residual along the trajectory's direction (PassSettings::timing_variance). On a
+  // noise-free link it is most of x's residual (ẋ times the jitter): measured, 41 µs RMS leaves
+  // ~4 nm, ~1e-3 in θ1..θ4 at 100 Hz. false: the stamps are exact.
+  bool sample_timing_jitter = false;
 };
 
 struct FitResult {
@@ -81,6 +96,14 @@ struct FitResult {
   double t_begin = 0.0;                    // s, first and last sample of the window fitted
   double t_end = 0.0;
   std::size_t samples = 0;
+  // FitSettings::max_input_delay_s: whether the voltage's delay was estimated, the delay (s,
+  // positive: the voltage switched later than recorded) and its standard deviation, which
+  // `covariance` and `sigma` include.
+  bool input_delay_estimated = false;
+  double input_delay_s = 0.0;
+  double input_delay_sigma_s = 0.0;
+  // FitSettings::sample_timing_jitter: the estimated RMS error of the samples' instants (s).
+  double sample_timing_sigma_s = 0.0;
 };
 
 // Fits θ, the initial state and the noise variances to `window` (at least 3 samples, t strictly

@@ -1,15 +1,20 @@
 #include "refine/model_simulator.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace scp::refine {
 
-int pieces_between(const WindowSample& prev, const WindowSample& cur, Piece out[2]) noexcept {
+int pieces_between(const WindowSample& prev, const WindowSample& cur, Piece out[2],
+                   double input_delay) noexcept {
   const double dt = cur.t - prev.t;
   if (!(dt > 0.0)) return 0;
   const double u_prev = prev.voltage * prev.voltage;
   const double u_cur = cur.voltage * cur.voltage;
-  const double since = cur.voltage_since;
+  // A switch at or before the previous sample (a DAC that switches at sample instants, or −∞)
+  // is one at prev.t as far as this interval can tell.
+  const double since =
+      input_delay == 0.0 ? cur.voltage_since : std::max(cur.voltage_since, prev.t) + input_delay;
   if (since > prev.t && since < cur.t) {
     out[0] = {since - prev.t, u_prev};
     out[1] = {cur.t - since, u_cur};
@@ -86,14 +91,14 @@ MechanicalPiece advance_piece(const Vector6& theta, const Piece& piece, ModelSta
 }
 
 void simulate(std::span<const WindowSample> window, const Vector6& theta,
-              const InitialState& initial, std::span<ModelState> out) noexcept {
+              const InitialState& initial, std::span<ModelState> out, double input_delay) noexcept {
   if (window.empty() || out.size() < window.size()) return;
   ModelState s{initial[0], initial[1], initial[2]};
   out[0] = s;
   Piece pieces[2];
   ThermalCache cache;
   for (std::size_t k = 1; k < window.size(); ++k) {
-    const int n = pieces_between(window[k - 1], window[k], pieces);
+    const int n = pieces_between(window[k - 1], window[k], pieces, input_delay);
     for (int i = 0; i < n; ++i) {
       const int m = substeps(theta, s.tbar, pieces[i].tau);
       const Piece sub{pieces[i].tau / m, pieces[i].u};

@@ -42,9 +42,13 @@ struct Piece {
   double u = 0.0;    // V²
 };
 
-// The pieces from `prev` to `cur` (see WindowSample): one, or two when cur.voltage_since falls
-// strictly inside (prev.t, cur.t). Returns 0 when cur.t ≤ prev.t.
-int pieces_between(const WindowSample& prev, const WindowSample& cur, Piece out[2]) noexcept;
+// The pieces from `prev` to `cur` (see WindowSample): one, or two when the switch falls strictly
+// inside (prev.t, cur.t). Returns 0 when cur.t ≤ prev.t. `input_delay` (s) moves the switch
+// later than recorded: at max(cur.voltage_since, prev.t) + input_delay, the voltage's timing
+// relative to the samples that the fit can estimate (FitSettings::max_input_delay_s). A switch
+// moved out of the interval is held at its end, and one moved before it at its start.
+int pieces_between(const WindowSample& prev, const WindowSample& cur, Piece out[2],
+                   double input_delay = 0.0) noexcept;
 
 // Exact coefficients of the thermal block over a piece of length τ:
 //   T̄(τ) = decay·T̄(0) + gain·θ6·u,  mean of T̄ = mean_of_start·T̄(0) + mean_of_input·θ6·u.
@@ -101,6 +105,7 @@ ThermalPiece advance_thermal_piece(const Vector6& theta, const Piece& piece, Mod
 // The model's outputs at each sample of `window` (x and T̄; ẋ for tests), from `initial` at the
 // first sample. `out` must hold window.size() states.
 void simulate(std::span<const WindowSample> window, const Vector6& theta,
-              const InitialState& initial, std::span<ModelState> out) noexcept;
+              const InitialState& initial, std::span<ModelState> out,
+              double input_delay = 0.0) noexcept;
 
 }  // namespace scp::refine

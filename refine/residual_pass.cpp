@@ -109,7 +109,7 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
     ThermalCache cache;
     for (std::size_t k = 0; k < window.size(); ++k) {
       if (k > 0) {
-        const int n = pieces_between(window[k - 1], window[k], pieces);
+        const int n = pieces_between(window[k - 1], window[k], pieces, settings.input_delay);
         for (int i = 0; i < n; ++i) {
           if (settings.thermal_only) {
             advance_thermal_piece(theta, pieces[i], s, cache);
@@ -129,11 +129,28 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
     }
   } else {
     SensitivitySimulator sim(theta, initial, settings.thermal_only);
+    // The trajectory the timing weights come from (PassSettings::timing_variance).
+    const bool timing = settings.timing && !settings.thermal_only;
+    const Vector6 ref_theta = settings.timing_reference.head<6>();
+    ModelState ref{settings.timing_reference[kX0], settings.timing_reference[kXdot0],
+                   settings.timing_reference[kTbar0]};
+    ThermalCache ref_cache;
+    double ref_u = 0.0;  // V² in effect at the sample
     std::unique_ptr<LongRunAccumulator> hac;
     if (settings.hac_bandwidth > 0)
       hac = std::make_unique<LongRunAccumulator>(settings.hac_bandwidth);
     for (std::size_t k = 0; k < window.size(); ++k) {
-      if (k > 0) sim.advance(window[k - 1], window[k]);
+      if (k > 0) sim.advance(window[k - 1], window[k], settings.input_delay);
+      if (timing && k > 0) {
+        Piece pieces[2];
+        const int n = pieces_between(window[k - 1], window[k], pieces, settings.input_delay);
+        for (int i = 0; i < n; ++i) {
+          const int m = substeps(ref_theta, ref.tbar, pieces[i].tau);
+          const Piece sub{pieces[i].tau / m, pieces[i].u};
+          for (int j = 0; j < m; ++j) advance_piece(ref_theta, sub, ref, ref_cache);
+          ref_u = pieces[i].u;
+        }
+      }
       if (give_up(k, sim.substeps_taken(), sim.state())) {
         stopped = true;
         break;
@@ -143,7 +160,34 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
       const Vector9& jt = sim.dtbar();
       if (wx > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, wx);
       if (wt > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jt, wt);
-      const Vector9 score = wx * rx * jx + wt * rt * jt;
+      Vector9 score = wx * rx * jx + wt * rt * jt;
+      if (timing) {
+        // W = Σ⁻¹ − c·a aᵀ with a = Σ⁻¹g, c = s/(1 + s·q) (Sherman–Morrison).
+        const double s = settings.timing_variance;
+        const double gx = ref.xdot;
+        const double gt = -ref_theta[4] * ref.tbar + ref_theta[5] * ref_u;
+        const double ax = wx * gx, at = wt * gt;
+        const double q = ax * gx + at * gt;
+        const double c = s / (1.0 + s * q);
+        const double u = ax * rx + at * rt;
+        const Vector9 ja = ax * jx + at * jt;
+        r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(ja, -c);
+        score -= c * u * ja;
+        r.cost -= c * u * u;
+        // D_x = e₁e₁ᵀ, D_T = e₂e₂ᵀ, D_s = g gᵀ.
+        const double w_xx = wx - c * ax * ax, w_tt = wt - c * at * at, w_xt = -c * ax * at;
+        const double ex = w_xx * rx + w_xt * rt, et = w_xt * rx + w_tt * rt;    // W r
+        const double wgx = w_xx * gx + w_xt * gt, wgt = w_xt * gx + w_tt * gt;  // W g
+        const double gwg = gx * wgx + gt * wgt, ge = gx * ex + gt * et;
+        r.variance_score += 0.5 * Eigen::Vector3d(ex * ex - w_xx, et * et - w_tt, ge * ge - gwg);
+        Eigen::Matrix3d info;
+        info << w_xx * w_xx, w_xt * w_xt, wgx * wgx,  //
+            w_xt * w_xt, w_tt * w_tt, wgt * wgt,      //
+            wgx * wgx, wgt * wgt, gwg * gwg;
+        r.variance_information += 0.5 * info;
+        r.speed_squares[0] += gx * gx;
+        r.speed_squares[1] += gt * gt;
+      }
       r.jtwr += score;
       if (hac) hac->add(score);
     }

@@ -27,6 +27,19 @@ struct PassSettings {
   long max_substeps = 0;
   // Polled every kCancelStride samples: when it reads true the pass gives up (cancelled = true).
   const std::atomic<bool>* cancel = nullptr;
+  // s: every voltage switch this much later than recorded (pieces_between).
+  double input_delay = 0.0;
+  // > 0 (s²): each sample was taken at an instant off its stamp by a random error of this
+  // variance, the same for x and T̄ (one transaction read both). Its residual then has the
+  // covariance Σ + s·g gᵀ, g = (ẋ, dT̄/dt) the trajectory's velocity at the sample: the fit
+  // weights each sample by the inverse (Sherman–Morrison), so the component along g, which a
+  // shift in time explains, counts less (errors in the time variable, as orthogonal distance
+  // regression treats them). g comes from `timing_reference`, not from p, so that the weights
+  // large). Jacobian passes only; `timing` turns the weights and their statistics on (also at
+  // variance 0, where the weights are the plain ones).
+  bool timing = false;
+  double timing_variance = 0.0;
+  Vector9 timing_reference = Vector9::Zero();
 };
 
 // Samples between two polls of PassSettings::cancel: ~1 ms of simulation.
@@ -45,6 +58,12 @@ struct PassResult {
   long substeps = 0;       // model sub-steps simulated (the pass's cost)
   bool too_stiff = false;  // stopped at PassSettings::max_substeps
   bool cancelled = false;  // stopped at PassSettings::cancel
+  // With PassSettings::timing, for the re-estimation of the variances v = (σx², σT̄², s) by Fisher
+  // scoring (refine/fit.cpp): per sample, C = Σ + s·g gᵀ, W = C⁻¹, D_j = ∂C/∂v_j, the score
+  // ½(rᵀW D_j W r − tr(W D_j)) and the information ½·tr(W D_i W D_j), summed.
+  Eigen::Vector3d variance_score = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d variance_information = Eigen::Matrix3d::Zero();
+  std::array<double, 2> speed_squares{};  // Σ gx², Σ gT̄² (the timing error's share per channel)
 };
 
 PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,

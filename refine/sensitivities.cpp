@@ -15,9 +15,10 @@ SensitivitySimulator::SensitivitySimulator(const Vector6& theta, const InitialSt
   dtbar_[kTbar0] = 1.0;
 }
 
-void SensitivitySimulator::advance(const WindowSample& prev, const WindowSample& cur) noexcept {
+void SensitivitySimulator::advance(const WindowSample& prev, const WindowSample& cur,
+                                   double input_delay) noexcept {
   Piece pieces[2];
-  const int n = pieces_between(prev, cur, pieces);
+  const int n = pieces_between(prev, cur, pieces, input_delay);
   for (int i = 0; i < n; ++i) {
     if (thermal_only_) {
       const double tbar_before = state_.tbar;

@@ -21,8 +21,10 @@ class SensitivitySimulator {
   SensitivitySimulator(const Vector6& theta, const InitialState& initial,
                        bool thermal_only = false) noexcept;
 
-  // Advances from sample `prev` to sample `cur`.
-  void advance(const WindowSample& prev, const WindowSample& cur) noexcept;
+  // Advances from sample `prev` to sample `cur`, the voltage switching `input_delay` later than
+  // recorded (pieces_between).
+  void advance(const WindowSample& prev, const WindowSample& cur,
+               double input_delay = 0.0) noexcept;
 
   const ModelState& state() const noexcept { return state_; }
   // ∂x/∂p and ∂T̄/∂p at the current sample.

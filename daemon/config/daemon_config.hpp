@@ -96,6 +96,13 @@ struct RefineSettings {
   // A longer step between samples starts a new window; the model simulates through shorter ones
   // (missed periods, a failed read) with the voltage the DAC held.
   double max_gap_s = 0.2;
+  // The link's timing: the voltage's delay relative to its recorded switch instants and the
+  // samples' timing jitter, "estimate"d, taken as "recorded" (exact), or "auto": estimated unless
+  // the driver is the simulated plant (exact instants); resolved by the loader into
+  // estimate_link_timing.
+  std::string link_timing = "auto";
+  bool estimate_link_timing = false;
+  double max_input_delay_s = 0.005;  // the delay is searched within ± this
 };
 
 // The Prometheus textfile the daemon writes (docs/metrics: node_exporter's textfile collector).

@@ -308,6 +308,15 @@ void declare_refine(Binder refine, RefineSettings& out) {
                 "voltage the DAC held, which keeps the window long on a jittery link; keep it "
                 "below the timeout of a device watchdog that drops the output (the voltage "
                 "during a longer gap is not known)");
+  refine.choice("link_timing", out.link_timing, "auto", {"auto", "estimate", "recorded"},
+                "`estimate`: fit the voltage's delay relative to the instants the driver "
+                "recorded for it (a DAQ's output latency, a gateway's turnaround) from T, and the "
+                "samples' timing jitter with the noise; θ1..θ4 need both on a real link (130 µs "
+                "of delay unmodelled costs them 15 %, docs/numerics.md). `recorded`: the "
+                "instants are exact. `auto`: estimate unless driver.type is sim");
+  refine.number("max_input_delay_s", out.max_input_delay_s, 0.005, 1e-6, 1.0,
+                "the delay is searched within ± this; a fit whose delay lands on the limit does "
+                "not converge");
 }
 
 void declare_metrics(Binder metrics, MetricsSettings& out) {
@@ -363,6 +372,8 @@ void cross_check(const Binder& root, DaemonConfig& cfg) {
   if (cfg.refine.min_window_s > cfg.refine.window_s) {
     root.fail("refine", "refine.min_window_s must not exceed refine.window_s");
   }
+  cfg.refine.estimate_link_timing = cfg.refine.link_timing == "estimate" ||
+                                    (cfg.refine.link_timing == "auto" && cfg.driver.type != "sim");
   // The window is preallocated (daemon/refine/sample_window.hpp); refuse a size that would not fit.
   if (cfg.refine.enabled && cfg.refine.window_s / cfg.loop.period_s > kMaxRefineSamples) {
     root.fail("refine", "refine.window_s / loop.period_s is " +

@@ -46,6 +46,12 @@ struct RefinedView {
   std::uint64_t samples = 0;
   std::array<double, 2> residual_rms{};  // x in m, T̄ in °C
   std::array<double, 2> noise_sigma{};   // estimated sensor noise, same units
+  // refine.link_timing: the voltage's delay relative to its recorded instants, its σ, and the
+  // samples' RMS timing error (s).
+  bool input_delay_estimated = false;
+  double input_delay_s = 0.0;
+  double input_delay_sigma_s = 0.0;
+  double sample_timing_sigma_s = 0.0;
   bool converged = false;
   int iterations = 0;
   std::array<char, kMessageChars> message{};

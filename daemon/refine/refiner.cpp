@@ -153,6 +153,9 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   fit_settings.known = known_;
   fit_settings.hac_lags = settings_.hac_lags;
   fit_settings.cancel = cancel_;
+  fit_settings.max_input_delay_s =
+      settings_.estimate_link_timing ? settings_.max_input_delay_s : 0.0;
+  fit_settings.sample_timing_jitter = settings_.estimate_link_timing;
 
   const auto begin = std::chrono::steady_clock::now();
   scp::refine::FitResult r = fit_(window_.samples(), start, fit_settings);
@@ -192,6 +195,10 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   v.samples = r.samples;
   v.residual_rms = {r.residual_rms[0], r.residual_rms[1]};
   v.noise_sigma = {r.noise_sigma[0], r.noise_sigma[1]};
+  v.input_delay_estimated = r.input_delay_estimated;
+  v.input_delay_s = r.input_delay_s;
+  v.input_delay_sigma_s = r.input_delay_sigma_s;
+  v.sample_timing_sigma_s = r.sample_timing_sigma_s;
   // A result with a non-finite θ̂ is no result, whatever the solver said.
   v.converged = r.converged && all_finite(v.theta_hat);
   v.iterations = r.iterations;

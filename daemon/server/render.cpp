@@ -109,6 +109,13 @@ void put_refinement(json& out, const EstimateView& estimate, const refine::Refin
   put_finite(o, "duration_s", r.duration_s);
   o["residual_rms"] = channels(r.residual_rms);
   o["noise_sigma"] = channels(r.noise_sigma);
+  if (r.input_delay_estimated) {
+    json timing = json::object();
+    put_finite(timing, "input_delay_s", r.input_delay_s);
+    put_finite(timing, "input_delay_sigma_s", r.input_delay_sigma_s);
+    put_finite(timing, "sample_jitter_s", r.sample_timing_sigma_s);
+    o["link_timing"] = timing;
+  }
   o["converged"] = r.converged;
   o["iterations"] = r.iterations;
   const std::string_view message{r.message.data(), strnlen(r.message.data(), r.message.size())};
