@@ -303,6 +303,38 @@ double earliest_switch_delay(std::span<const WindowSample> w, double limit) {
   return inside ? lead : 0.0;
 }
 
+struct GoldenResult {
+  double x = 0.0;
+  double cost = 0.0;
+};
+
+// Golden-section search for the minimum of `cost` on [a, b] until the bracket is narrower than
+// `tolerance` (at most max_steps steps, fewer when `stop` says so); `steps` counts them.
+template <class Cost, class Stop>
+GoldenResult golden_section(double a, double b, double tolerance, int max_steps, Cost&& cost,
+                            Stop&& stop, int& steps) {
+  const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+  double x1 = b - g * (b - a), x2 = a + g * (b - a);
+  double f1 = cost(x1), f2 = cost(x2);
+  for (int i = 0; i < max_steps && b - a > tolerance && !stop(); ++i) {
+    ++steps;
+    if (f1 < f2) {
+      b = x2;
+      x2 = x1;
+      f2 = f1;
+      x1 = b - g * (b - a);
+      f1 = cost(x1);
+    } else {
+      a = x1;
+      x1 = x2;
+      f1 = f2;
+      x2 = a + g * (b - a);
+      f2 = cost(x2);
+    }
+  }
+  return f1 < f2 ? GoldenResult{x1, f1} : GoldenResult{x2, f2};
+}
+
 struct DelayEstimate {
   bool ok = false;
   double delay = 0.0;  // s
@@ -356,26 +388,11 @@ DelayEstimate estimate_input_delay(std::span<const WindowSample> window, const V
   };
   // Golden section to 0.5 µs, then the vertex of the parabola the curvature is measured on: T̄
   // resolves d to ~0.3 µs on a clean link (docs/numerics.md).
-  const double g = 0.5 * (std::sqrt(5.0) - 1.0);
   const double lowest = -earliest_switch_delay(window, limit);
-  double a = lowest, b = limit;
-  double x1 = b - g * (b - a), x2 = a + g * (b - a);
-  double f1 = cost_at(x1), f2 = cost_at(x2);
-  for (int i = 0; i < 80 && b - a > 0.5e-6 && budget.stop() == nullptr; ++i) {
-    if (f1 < f2) {
-      b = x2;
-      x2 = x1;
-      f2 = f1;
-      x1 = b - g * (b - a);
-      f1 = cost_at(x1);
-    } else {
-      a = x1;
-      x1 = x2;
-      f1 = f2;
-      x2 = a + g * (b - a);
-      f2 = cost_at(x2);
-    }
-  }
+  int steps = 0;
+  golden_section(
+      lowest, limit, 0.5e-6, 80, cost_at, [&] { return budget.stop() != nullptr; },
+      steps);  // cost_at keeps the best point it has seen
   if (!std::isfinite(best_cost) || budget.stop() != nullptr) return out;
   double d = out.delay;
   // Curvature over ±h with h near σ_d itself (the parabola is exact there; far smaller steps
@@ -572,28 +589,10 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
       }
     }
     // Golden section on [best − ln 2, best + ln 2] (clipped to the searched range).
-    double a = std::max(lo, best_ln - ln2), b = std::min(0.0, best_ln + ln2);
-    const double g = 0.5 * (std::sqrt(5.0) - 1.0);
-    double x1 = b - g * (b - a), x2 = a + g * (b - a);
-    double f1 = cost_at(x1), f2 = cost_at(x2);
-    for (int i = 0; i < 64 && b - a > 0.05 && budget.stop() == nullptr; ++i) {
-      ++iterations;
-      if (f1 < f2) {
-        b = x2;
-        x2 = x1;
-        f2 = f1;
-        x1 = b - g * (b - a);
-        f1 = cost_at(x1);
-      } else {
-        a = x1;
-        x1 = x2;
-        f1 = f2;
-        x2 = a + g * (b - a);
-        f2 = cost_at(x2);
-      }
-    }
-    const double ln_s = f1 < f2 ? x1 : x2;
-    if (std::min(f1, f2) < best_cost) best_ln = ln_s;
+    const GoldenResult golden = golden_section(
+        std::max(lo, best_ln - ln2), std::min(0.0, best_ln + ln2), 0.05, 64, cost_at,
+        [&] { return budget.stop() != nullptr; }, iterations);
+    if (golden.cost < best_cost) best_ln = golden.x;
     p.head<4>() *= std::exp(best_ln);
     // A start that already fits better (the previous window's refined θ, an underdamped
     // actuator whose quasi-static ratios mislead) is kept.
@@ -602,7 +601,7 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
     const PassResult at_start = budget.pass(head, q, ps);
     ++iterations;
     if (at_start.finite && stable_at(q, at_start, range) &&
-        at_start.cost < std::min(best_cost, std::min(f1, f2)))
+        at_start.cost < std::min(best_cost, golden.cost))
       p = q;
     if (budget.stop() != nullptr) return stopped_here(budget.stop());
   }

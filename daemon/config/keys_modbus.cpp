@@ -166,6 +166,11 @@ void declare_modbus_keys(Binder& m, ModbusSettings& out) {
     tm.number("output_latency", out.timing.output_latency_s, 0.0, -1.0, 1.0,
               "s the DAQ's output changes after the write request reached it (DAC update "
               "cycle)");
+    tm.boolean("serial_line", out.timing.serial_line, false,
+               "transport tcp to a TCP-to-RTU gateway: time each transaction as the serial line "
+               "behind it (rtu.baud, parity, data_bits, stop_bits): its frames and the 3.5 "
+               "characters of silence after each, which a command sent right after a read "
+               "waits out on the line unseen (docs/driver-modbus.md, \"Time\")");
   }
   m.integer("max_read_gap", gap, 8, 0, 120,
             "unused registers read and discarded to fetch two signals in one request");

@@ -49,6 +49,9 @@ struct LinkTiming {
   bool stamp = true;
   double input_latency_s = 0.0;   // the DAQ's sample is this much older than the wire model says
   double output_latency_s = 0.0;  // its output changes this much later than the wire model says
+  // Modbus TCP to a TCP-to-RTU gateway: the transactions are timed as the serial line behind it
+  // (rtu.baud, parity, data and stop bits), its frames and its 3.5-character silences included.
+  bool serial_line = false;
 };
 
 struct ModbusSettings {

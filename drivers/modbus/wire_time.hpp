@@ -20,9 +20,11 @@ namespace scp::drivers::modbus {
 
 inline constexpr double kRtuFrameGapChars = 3.5;
 
-// Seconds one character takes on the line (0 over TCP).
+// Seconds one character takes on the line (0 over TCP, unless a gateway puts a serial line behind
+// it: LinkTiming::serial_line).
 inline double char_time_s(const ModbusSettings& s) noexcept {
-  if (s.transport != Transport::rtu || s.baud <= 0) return 0.0;
+  const bool line = s.transport == Transport::rtu || s.timing.serial_line;
+  if (!line || s.baud <= 0) return 0.0;
   const int bits = 1 + s.data_bits + (s.parity == 'N' ? 0 : 1) + s.stop_bits;
   return static_cast<double>(bits) / static_cast<double>(s.baud);
 }

@@ -27,6 +27,13 @@ TEST(WireTime, CharacterTimeCountsStartDataParityAndStopBits) {
   tcp.transport = Transport::tcp;
   EXPECT_EQ(char_time_s(tcp), 0.0);
   EXPECT_EQ(event_after_midpoint_s(tcp, 8, 21), 0.0);
+  // Through a TCP-to-RTU gateway the line behind it sets the times.
+  ModbusSettings gateway = rtu(115200, 'E', 1);
+  gateway.transport = Transport::tcp;
+  gateway.timing.serial_line = true;
+  EXPECT_DOUBLE_EQ(char_time_s(gateway), 11.0 / 115200);
+  EXPECT_DOUBLE_EQ(event_after_midpoint_s(gateway, 8, 21),
+                   event_after_midpoint_s(rtu(115200, 'E', 1), 8, 21));
 }
 
 TEST(WireTime, ReadSamplesBeforeAndWriteLandsAfterTheMidpoint) {
