@@ -303,6 +303,23 @@ double earliest_switch_delay(std::span<const WindowSample> w, double limit) {
   return inside ? lead : 0.0;
 }
 
+// The thermal stage's coordinates (θ5, θ6 unless known, T̄0) from `base`, and its passes: T̄ alone.
+Coordinates thermal_coordinates(const std::array<bool, 6>& known, const Vector9& base) {
+  Coordinates c;
+  for (int i : {4, 5})
+    if (!known[i]) c.index.push_back(i);
+  c.index.push_back(kTbar0);
+  c.base = base;
+  return c;
+}
+
+PassSettings thermal_pass() {
+  PassSettings ps;
+  ps.weight = {0.0, 1.0};
+  ps.thermal_only = true;
+  return ps;
+}
+
 struct GoldenResult {
   double x = 0.0;
   double cost = 0.0;
@@ -355,14 +372,8 @@ DelayEstimate estimate_input_delay(std::span<const WindowSample> window, const V
   FitSettings own = settings;
   own.max_evaluations = 2000;
   Budget budget(window, own);
-  Coordinates c;
-  for (int i : {4, 5})
-    if (!known[i]) c.index.push_back(i);
-  c.index.push_back(kTbar0);
-  c.base = start;
-  PassSettings ps;
-  ps.weight = {0.0, 1.0};
-  ps.thermal_only = true;
+  Coordinates c = thermal_coordinates(known, start);
+  const PassSettings ps = thermal_pass();
   const double inf = std::numeric_limits<double>::infinity();
   DelayEstimate out;
   out.p = start;
@@ -502,15 +513,8 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
   bool delay_at_limit = false;
   // (a) thermal.
   {
-    Coordinates c;
-    for (int i : {4, 5})
-      if (!known[i]) c.index.push_back(i);
-    c.index.push_back(kTbar0);
-    c.base = p;
-    PassSettings ps;
-    ps.weight = {0.0, 1.0};
-    ps.thermal_only = true;
-    const StageResult r = run_stage(window, c, ps, max_it, budget);
+    const Coordinates c = thermal_coordinates(known, p);
+    const StageResult r = run_stage(window, c, thermal_pass(), max_it, budget);
     iterations += r.iterations;
     if (r.pass.finite) {
       p = r.p;
