@@ -90,20 +90,30 @@ MechanicalPiece advance_piece(const Vector6& theta, const Piece& piece, ModelSta
   return mp;
 }
 
+long advance_interval(const Vector6& theta, const WindowSample& prev, const WindowSample& cur,
+                      double input_delay, ModelState& state, ThermalCache& cache,
+                      double* u_end) noexcept {
+  Piece pieces[2];
+  const int n = pieces_between(prev, cur, pieces, input_delay);
+  long taken = 0;
+  for (int i = 0; i < n; ++i) {
+    const int m = substeps(theta, state.tbar, pieces[i].tau);
+    const Piece sub{pieces[i].tau / m, pieces[i].u};
+    for (int j = 0; j < m; ++j) advance_piece(theta, sub, state, cache);
+    taken += m;
+    if (u_end != nullptr) *u_end = pieces[i].u;
+  }
+  return taken;
+}
+
 void simulate(std::span<const WindowSample> window, const Vector6& theta,
               const InitialState& initial, std::span<ModelState> out, double input_delay) noexcept {
   if (window.empty() || out.size() < window.size()) return;
   ModelState s{initial[0], initial[1], initial[2]};
   out[0] = s;
-  Piece pieces[2];
   ThermalCache cache;
   for (std::size_t k = 1; k < window.size(); ++k) {
-    const int n = pieces_between(window[k - 1], window[k], pieces, input_delay);
-    for (int i = 0; i < n; ++i) {
-      const int m = substeps(theta, s.tbar, pieces[i].tau);
-      const Piece sub{pieces[i].tau / m, pieces[i].u};
-      for (int j = 0; j < m; ++j) advance_piece(theta, sub, s, cache);
-    }
+    advance_interval(theta, window[k - 1], window[k], input_delay, s, cache);
     out[k] = s;
   }
 }

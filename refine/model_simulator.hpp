@@ -102,6 +102,13 @@ MechanicalPiece advance_piece(const Vector6& theta, const Piece& piece, ModelSta
 ThermalPiece advance_thermal_piece(const Vector6& theta, const Piece& piece, ModelState& state,
                                    ThermalCache& cache) noexcept;
 
+// Advances `state` (both blocks) from sample `prev` to sample `cur`: the pieces of
+// pieces_between, each cut into the sub-steps of substeps(). Returns the sub-steps taken; `u_end`
+// (if given) receives V² in effect at cur.
+long advance_interval(const Vector6& theta, const WindowSample& prev, const WindowSample& cur,
+                      double input_delay, ModelState& state, ThermalCache& cache,
+                      double* u_end = nullptr) noexcept;
+
 // The model's outputs at each sample of `window` (x and T̄; ẋ for tests), from `initial` at the
 // first sample. `out` must hold window.size() states.
 void simulate(std::span<const WindowSample> window, const Vector6& theta,

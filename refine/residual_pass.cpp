@@ -105,21 +105,15 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
   if (!settings.jacobian) {
     // Cost only: the state alone, about three times cheaper than with nine sensitivities.
     ModelState s{initial[0], initial[1], initial[2]};
-    Piece pieces[2];
     ThermalCache cache;
     for (std::size_t k = 0; k < window.size(); ++k) {
-      if (k > 0) {
+      if (k > 0 && settings.thermal_only) {
+        Piece pieces[2];
         const int n = pieces_between(window[k - 1], window[k], pieces, settings.input_delay);
-        for (int i = 0; i < n; ++i) {
-          if (settings.thermal_only) {
-            advance_thermal_piece(theta, pieces[i], s, cache);
-            continue;
-          }
-          const int m = substeps(theta, s.tbar, pieces[i].tau);
-          const Piece sub{pieces[i].tau / m, pieces[i].u};
-          r.substeps += m;
-          for (int j = 0; j < m; ++j) advance_piece(theta, sub, s, cache);
-        }
+        for (int i = 0; i < n; ++i) advance_thermal_piece(theta, pieces[i], s, cache);
+      } else if (k > 0) {
+        r.substeps +=
+            advance_interval(theta, window[k - 1], window[k], settings.input_delay, s, cache);
       }
       if (give_up(k, r.substeps, s)) {
         stopped = true;
@@ -142,14 +136,8 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
     for (std::size_t k = 0; k < window.size(); ++k) {
       if (k > 0) sim.advance(window[k - 1], window[k], settings.input_delay);
       if (timing && k > 0) {
-        Piece pieces[2];
-        const int n = pieces_between(window[k - 1], window[k], pieces, settings.input_delay);
-        for (int i = 0; i < n; ++i) {
-          const int m = substeps(ref_theta, ref.tbar, pieces[i].tau);
-          const Piece sub{pieces[i].tau / m, pieces[i].u};
-          for (int j = 0; j < m; ++j) advance_piece(ref_theta, sub, ref, ref_cache);
-          ref_u = pieces[i].u;
-        }
+        advance_interval(ref_theta, window[k - 1], window[k], settings.input_delay, ref, ref_cache,
+                         &ref_u);
       }
       if (give_up(k, sim.substeps_taken(), sim.state())) {
         stopped = true;
