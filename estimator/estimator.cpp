@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "estimator/config_check.hpp"
+#include "estimator/held_lag.hpp"
 
 namespace scp::estimator {
 namespace {
@@ -150,35 +151,39 @@ UpdateOutcome Estimator::update(const Measurement& m) noexcept {
   }
 
   // eq. (15), column by column, and eq. (14): p is β/(s+β) applied to −βv. Smooth inputs get
-  // the quadratic correction (hold_filter.hpp). Under a ZOH voltage, T̄' jumps at every sample
-  // (V² steps there), so a 3-point quadratic would read each kink as curvature (measured: 4×
-  // worse than FOH); inside the interval T̄'' = −θ5·T̄' exactly, so T̄ gets that curvature with
-  // the current θ̂5 (FOH alone leaves ~3e-6 bias in the mechanical θ̂, measured). x, ẋ and T̄ẋ
-  // are smoothed by the mechanical dynamics and take the 3-point correction.
+  // the quadratic correction (hold_filter.hpp); x, ẋ and T̄ẋ are smoothed by the mechanical
+  // dynamics. Under a held voltage T̄ is not smooth: T̄' jumps at each switch, at the sample or
+  // inside the interval where a link's write landed, and a 3-point quadratic reads that kink as
+  // curvature. T̄ then takes the exact path of a lag driven by the held V² (held_lag.hpp) with the
+  // current θ̂5: measured at 100 Hz with the voltage landing mid-interval, the quadratic lag this
+  // replaced left 1.5–2.2e-2 in the mechanical θ̂ and 4–7e-6 in the thermal θ̂, the exact path
+  // 4e-3 and 1e-13 (tests/estimator/test_link_timing.cpp). V² itself is exact under ZOH,
+  // split where the voltage changed.
   const Vector6 u = filter_inputs(m);
   Vector2 v;
   v << m.xdot, m.tbar;
-  const bool zoh = c.voltage_hold == VoltageHold::zoh;
   const bool quad = h_prev_ > 0.0;
-  const double a_th = std::max(0.0, estimate_.theta_hat(4));
   const auto smooth = [&](double y, double u0, double u1, double u2) noexcept {
     return quad ? hold_.quadratic(y, u0, u1, u2, h_prev_) : hold_.foh(y, u1, u2);
   };
-  const auto tbar_like = [&](double y, double u0, double u1, double u2) noexcept {
-    return zoh ? hold_.lag(y, u1, u2, a_th) : smooth(y, u0, u1, u2);
-  };
+  const double b = c.beta;
   for (int i = 0; i < 3; ++i) wf_(i) = smooth(wf_(i), u_prev2_(i), u_prev_(i), u(i));
-  for (int i = 3; i < 5; ++i) wf_(i) = tbar_like(wf_(i), u_prev2_(i), u_prev_(i), u(i));
-  if (zoh) {
-    wf_(5) = m.voltage_since > t_prev_ && m.voltage_since < m.t
-                 ? hold_.zoh_split_step(wf_(5), u_prev_(5), u(5), c.beta, m.t - m.voltage_since)
+  p_(0) = smooth(p_(0), -b * v_prev2_(0), -b * v_prev_(0), -b * v(0));
+  if (c.voltage_hold == VoltageHold::zoh) {
+    const bool switched_inside = m.voltage_since > t_prev_ && m.voltage_since < m.t;
+    const double switch_offset = switched_inside ? m.voltage_since - t_prev_ : 0.0;
+    const double a_th = std::max(0.0, estimate_.theta_hat(4));
+    const HeldLagWeights lag =
+        HeldLagWeights::make(hold_, b, a_th, u_prev_(5), u(5), switch_offset);
+    for (int i = 3; i < 5; ++i) wf_(i) = lag.step(wf_(i), hold_.phi, u_prev_(i), u(i));
+    p_(1) = lag.step(p_(1), hold_.phi, -b * v_prev_(1), -b * v(1));
+    wf_(5) = switched_inside
+                 ? hold_.zoh_split_step(wf_(5), u_prev_(5), u(5), b, m.t - m.voltage_since)
                  : hold_.zoh_step(wf_(5), u(5));
   } else {
-    wf_(5) = smooth(wf_(5), u_prev2_(5), u_prev_(5), u(5));
+    for (int i = 3; i < 6; ++i) wf_(i) = smooth(wf_(i), u_prev2_(i), u_prev_(i), u(i));
+    p_(1) = smooth(p_(1), -b * v_prev2_(1), -b * v_prev_(1), -b * v(1));
   }
-  const double b = c.beta;
-  p_(0) = smooth(p_(0), -b * v_prev2_(0), -b * v_prev_(0), -b * v(0));
-  p_(1) = tbar_like(p_(1), -b * v_prev2_(1), -b * v_prev_(1), -b * v(1));
   u_prev2_ = u_prev_;
   v_prev2_ = v_prev_;
   u_prev_ = u;

@@ -12,7 +12,9 @@
 //   VoltageHold::zoh the V² column instead uses the exact zero-order-hold update, because a DAC
 //   holds the voltage of sample k+1 over (t_k, t_{k+1}]; that column is then exact. When the
 //   voltage changed inside the interval (Measurement::voltage_since), the step is split there:
-//   still exact. Sample intervals need not be uniform: the coefficients follow each step's h.
+//   still exact. T̄'s columns then follow the exact path of a lag driven by that held V², with
+//   θ̂5 (held_lag.hpp), kink at the switch included. Sample intervals need not be uniform: the
+//   coefficients follow each step's h.
 // - On the first sample (and after a filter restart) W_f = 0 and p = −βv, so a_f = 0 (eq. (9)
 //   with a_f(0) = 0); a_f = W_f θ then holds for the continuous system even if the actuator was
 //   moving when we started. That sample only initializes.

@@ -63,11 +63,6 @@ struct HoldCoefficients {
     const double q = ((u2 - u1) / h - (u1 - u0) / h0) / (h + h0);
     return foh(y, u1, u2) + j * q;
   }
-  // Input u with u'' = −a·u' inside the interval (a first-order lag driven by a held input,
-  // e.g. T̄ under a ZOH voltage, a = λ/Cth): its curvature is −a·(u2−u1)/h, so q = −(a/2)·slope.
-  double lag(double y, double u1, double u2, double a) const noexcept {
-    return foh(y, u1, u2) + j * (-0.5 * a * (u2 - u1) / h);
-  }
   double zoh_step(double y, double u_next) const noexcept { return phi * y + zoh * u_next; }
   // ZOH with the input switching inside the interval: u_prev until `tail` before its end, u_next
   // for the last `tail` seconds (0 < tail < h) — a DAC whose command arrived mid-interval. Exact:

@@ -313,12 +313,14 @@ TEST(E2eLinkTiming, StampedTransactionsIdentifyFarBetterThanDeadlines) {
   // stretched or failed), the deadlines' 1.8e-3 / 1.7e-3 beside them, 8x worse. The counters
   // see only the transactions that were late, not every stamp a loaded softirq delayed.
   EXPECT_LT(std::max(med[0][4], med[0][5]), 2e-4 * machine_factor) << figures();
-  // θ1..θ4: at 100 Hz the paper law's own discretization alone leaves 5e-3..1.1e-2 (ideal DAC,
-  // tests/estimator/test_link_timing.cpp); the mechanical row is ~1e-8 of the thermal one in
-  // information, and millisecond latency outliers, failed reads and the reconnections of a late
-  // TCP reply (issue 9) cost it far more: measured 0.15-0.2 RMS over 75 s on a loaded machine,
-  // stamped or not. Only gross failure is checked here (θ̂(0) = 0 is an error of 1).
-  EXPECT_LT(mech[0], 0.5) << "theta1..4 worst median " << mech[0];
+  // θ1..θ4, the paper law: at 100 Hz its filters' discretization decides them. With T̄ on the
+  // held lag's exact path, kink at the landing included (estimator/held_lag.hpp), what is left is
+  // the quadratic through ẋ: 3.6-6.7e-3 simulated (tests/estimator/test_link_timing.cpp).
+  // Measured here, idle: 6.6e-3 at 75 s and 8.8e-3 at 300 s stamped, against 2.7e-2 and 1.8e-2
+  // before (and 2.7e-2 / 1.8e-2 with deadlines, where the voltage switches at samples). Issue 8's
+  // target at 300 s is 1e-2; the bound is 1.5e-2 x the machine factor, for the load spikes that
+  // corrupt a few of the paper law's 1.25 s memories.
+  EXPECT_LT(mech[0], 1.5e-2 * machine_factor) << "theta1..4 worst median " << mech[0];
 }
 
 }  // namespace

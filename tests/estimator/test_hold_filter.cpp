@@ -77,23 +77,6 @@ TEST(HoldFilter, QuadraticIsExactForParabola) {
   EXPECT_LT(max_err, 1e-12);
 }
 
-TEST(HoldFilter, LagIsNearlyExactForExponentialApproach) {
-  // u = 1 − e^{−a t} has u'' = −a u'; y(0) = 0 ⇒ y = 1 − (β e^{−a t} − a e^{−β t})/(β − a).
-  const double a = 0.5, h = 1e-3;
-  const HoldCoefficients k = HoldCoefficients::make(kBeta, h);
-  double y = 0.0, y_foh = 0.0, err = 0.0, err_foh = 0.0;
-  for (int i = 1; i <= 4000; ++i) {
-    const double t0 = (i - 1) * h, t1 = i * h;
-    const double u0 = 1 - std::exp(-a * t0), u1 = 1 - std::exp(-a * t1);
-    y = k.lag(y, u0, u1, a);
-    y_foh = k.foh(y_foh, u0, u1);
-    const double exact = 1 - (kBeta * std::exp(-a * t1) - a * std::exp(-kBeta * t1)) / (kBeta - a);
-    err = std::max(err, std::abs(y - exact));
-    err_foh = std::max(err_foh, std::abs(y_foh - exact));
-  }
-  EXPECT_LT(err, 1e-3 * err_foh);  // the curvature term removes the O(h²) error of FOH
-}
-
 TEST(HoldFilter, ZohIsExactForStep) {
   const double h = 1e-3;
   const HoldCoefficients k = HoldCoefficients::make(kBeta, h);
