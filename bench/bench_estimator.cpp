@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "estimator/estimator.hpp"
+#include "estimator/held_lag.hpp"
 #include "estimator/small_ldlt.hpp"
 #include "tests/estimator/test_plant.hpp"
 
@@ -165,6 +166,32 @@ void BM_Eigenvalues2(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_Eigenvalues2);
+
+// The per-step filter coefficients: the hold coefficients every column uses, and the held lag's
+// weights T̄'s columns use under a held voltage (the voltage switching at the sample, as a DAC
+// clocked with the loop does; h varies in its last bits as it does on a float time base).
+void BM_HoldCoefficients(benchmark::State& state) {
+  double h = 1e-3;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(h);
+    const auto c = scp::estimator::HoldCoefficients::make(3.0, h);
+    benchmark::DoNotOptimize(c);
+    h = std::nextafter(h, 1.0);
+  }
+}
+BENCHMARK(BM_HoldCoefficients);
+
+void BM_HeldLagWeights(benchmark::State& state) {
+  const auto hold = scp::estimator::HoldCoefficients::make(3.0, 1e-3);
+  double a = 0.0594;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(a);
+    const auto w = scp::estimator::HeldLagWeights::make(hold, 3.0, a, 2.5, 2.6, 0.0);
+    benchmark::DoNotOptimize(w);
+    a = std::nextafter(a, 1.0);
+  }
+}
+BENCHMARK(BM_HeldLagWeights);
 
 void BM_MatVec6x6(benchmark::State& state) {
   Eigen::Matrix<double, 6, 6> a = Eigen::Matrix<double, 6, 6>::Random();

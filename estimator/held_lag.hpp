@@ -30,14 +30,14 @@ struct HeldLagWeights {
                              double v1_squared, double switch_offset) noexcept {
     const double h = hold.h;
     const double s_s = std::clamp(switch_offset, 0.0, h);
-    const double decay_h = std::exp(-a * h);
+    const double decay_h_minus_one = std::expm1(-a * h);  // e^{−ah} − 1, exact for small ah
+    const double lag_h = a * h > 1e-12 ? -decay_h_minus_one / a : h;           // E(h)
     const double filtered_decay = filtered_exponential(beta, a, h, hold.phi);  // of e^{−as}
     double filtered_shape;  // ∫ kernel · ψ, ψ = c(s)/c(h)
     if (s_s == 0.0) {
       // One V² over the interval (or none): ψ = E(s)/E(h) whatever V1² is, E(s) = (1 − e^{−as})/a.
       // The common case (a sample-synchronous DAC, every simulated run): two exponentials.
-      filtered_shape =
-          filtered_lag_integral(a, hold.zoh, filtered_decay, 1.0, beta, h) / lag_integral(a, h);
+      filtered_shape = filtered_lag_integral(a, hold.zoh, filtered_decay, 1.0, beta, h) / lag_h;
     } else {
       // c(s) before the switch: V0²·E(s); after: V1²·E(s − s_s) + c_s·e^{−a(s−s_s)}.
       const double tail = h - s_s;
@@ -57,13 +57,12 @@ struct HeldLagWeights {
                              c_switch * ke_tail;
         filtered_shape = (head + after) / c_end;
       } else {  // no heating: the lag's own shape, as for s_s = 0
-        filtered_shape =
-            filtered_lag_integral(a, hold.zoh, filtered_decay, 1.0, beta, h) / lag_integral(a, h);
+        filtered_shape = filtered_lag_integral(a, hold.zoh, filtered_decay, 1.0, beta, h) / lag_h;
       }
     }
     HeldLagWeights w;
     w.w_next = filtered_shape;
-    w.w_prev = filtered_decay - decay_h * filtered_shape;
+    w.w_prev = filtered_decay - (1.0 + decay_h_minus_one) * filtered_shape;
     return w;
   }
 
