@@ -160,8 +160,7 @@ TEST(Journal, SighupAppliesSafetyLimitsAndNamesRestartOnlyKeys) {
   cfg["safety"]["temperature_max_c"] = -30.0;  // below temperature_min_c: invalid
   write_config(daemon.config_path(), cfg);
   daemon.signal(SIGHUP);
-  sleep_s(0.5);
-  EXPECT_TRUE(contains(daemon.stderr_text(), "refused, the running configuration is kept"))
+  EXPECT_TRUE(daemon.wait_logged("refused, the running configuration is kept", Seconds(10)))
       << daemon.stderr_text();
   EXPECT_EQ(daemon.status().value("state", ""), "running");
 
@@ -176,11 +175,14 @@ TEST(Journal, SighupAppliesSafetyLimitsAndNamesRestartOnlyKeys) {
   EXPECT_TRUE(contains(faulted->value("fault_reason", ""), "safety.temperature_max_c = 30.00"))
       << faulted->dump();
   EXPECT_EQ(num(*faulted, "voltage_command"), 0.0) << faulted->dump();
-  const std::string log = daemon.stderr_text();
-  EXPECT_TRUE(contains(log, "applied safety.temperature_max_c")) << log;
-  EXPECT_TRUE(
-      contains(log, "but not applied, a restart is needed (systemctl restart): loop.period_s"))
-      << log;
+  // The fault is the loop's; the lines about the reload come from the logging thread, which a
+  // loaded machine may run later (measured under stress -c 2: not yet written when the fault
+  // showed).
+  EXPECT_TRUE(daemon.wait_logged("applied safety.temperature_max_c", Seconds(10)))
+      << daemon.stderr_text();
+  EXPECT_TRUE(daemon.wait_logged(
+      "but not applied, a restart is needed (systemctl restart): loop.period_s", Seconds(10)))
+      << daemon.stderr_text();
   EXPECT_NEAR(num(daemon.status(), "period_s"), 0.001, 1e-12) << "period changed without restart";
   daemon.signal(SIGTERM);
   ASSERT_EQ(daemon.wait_exit(Seconds(10)), std::optional<int>(0));
@@ -202,15 +204,13 @@ TEST(Journal, SighupReloadsTheLogLevel) {
   cfg["log_level"] = "debug";
   write_config(daemon.config_path(), cfg);
   daemon.signal(SIGHUP);
-  sleep_s(0.5);
-  EXPECT_TRUE(contains(daemon.stderr_text(), "notice: SIGHUP: reloaded")) << daemon.stderr_text();
-  EXPECT_TRUE(contains(daemon.stderr_text(), "applied log_level (log_level debug"))
+  EXPECT_TRUE(daemon.wait_logged("notice: SIGHUP: reloaded", Seconds(10))) << daemon.stderr_text();
+  EXPECT_TRUE(daemon.wait_logged("applied log_level (log_level debug", Seconds(10)))
       << daemon.stderr_text();
   // Debug lines now appear: the checkpoint's at shutdown.
   write_text(daemon.config_path(), "loop: [broken\n");
   daemon.signal(SIGHUP);
-  sleep_s(0.5);
-  EXPECT_TRUE(contains(daemon.stderr_text(), "refused, the running configuration is kept"))
+  EXPECT_TRUE(daemon.wait_logged("refused, the running configuration is kept", Seconds(10)))
       << daemon.stderr_text();
   EXPECT_EQ(daemon.status().value("state", ""), "running");
   daemon.signal(SIGTERM);

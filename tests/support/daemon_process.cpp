@@ -362,6 +362,15 @@ std::string DaemonProcess::stderr_text() const {
   return read_text(stderr_path_);
 }
 
+bool DaemonProcess::wait_logged(const std::string& text, Seconds timeout) const {
+  const auto end = std::chrono::steady_clock::now() + timeout;
+  while (true) {
+    if (stderr_text().find(text) != std::string::npos) return true;
+    if (std::chrono::steady_clock::now() >= end) return false;
+    sleep_s(0.02);
+  }
+}
+
 json DaemonProcess::request(const json& req) const {
   Client c(socket_path_);
   return c.request(req);

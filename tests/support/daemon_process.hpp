@@ -114,6 +114,10 @@ class DaemonProcess {
   std::string state_dir() const { return state_dir_; }
   std::string state_file() const { return state_dir_ + "/estimator.state"; }
   std::string stderr_text() const;  // everything the daemon logged (all runs)
+  // Polls stderr_text() until it contains `text` or timeout: the daemon logs from its own thread,
+  // so a line about an event the socket already shows can still be on its way (under load, by
+  // seconds). Returns whether it appeared.
+  bool wait_logged(const std::string& text, Seconds timeout) const;
   const json& config() const noexcept { return config_; }
 
   Client connect() const { return Client(socket_path_); }
