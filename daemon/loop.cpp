@@ -394,6 +394,7 @@ void Loop::record(const drivers::Sample& fed, RecordRing& ring) noexcept {
   row.xdot = fed.xdot;
   row.temperature = fed.temperature;
   row.voltage = fed.voltage;
+  row.voltage_since = fed.voltage_since;
   row.voltage_command = voltage_command_;
   row.theta_hat = to_array<6>(e.theta_hat);
   row.sigma = to_array<6>(e.sigma);

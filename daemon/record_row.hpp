@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 
 namespace scp::daemon {
 
@@ -14,6 +15,9 @@ struct RecordRow {
   double temperature = 0.0;
   double voltage = 0.0;          // applied over the interval ending at t (the sample's)
   double voltage_command = 0.0;  // sent this cycle, held until the next
+  // When `voltage` took effect, if inside the interval (drivers/sample.hpp); −∞: the whole
+  // interval. Recorded so that a replay of a link's run feeds the estimators the same instants.
+  double voltage_since = -std::numeric_limits<double>::infinity();
   std::array<double, 6> theta_hat{};
   std::array<double, 6> sigma{};
   std::array<double, 2> eps{};

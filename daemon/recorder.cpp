@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <charconv>
+#include <cmath>
 #include <cstring>
 #include <ctime>
 #include <filesystem>
@@ -21,7 +22,7 @@ constexpr const char* kHeader =
     "refined_theta_hat1,refined_theta_hat2,refined_theta_hat3,refined_theta_hat4,"
     "refined_theta_hat5,refined_theta_hat6,refined_sigma1,refined_sigma2,refined_sigma3,"
     "refined_sigma4,refined_sigma5,refined_sigma6,refined_converged,best,"
-    "paper_biased_mechanical,paper_biased_thermal,unix_ns,xdot_source\n";
+    "paper_biased_mechanical,paper_biased_thermal,unix_ns,xdot_source,V_since\n";
 
 // <directory>/<actuator>-20261123T083000.123Z.csv: names sort in time order.
 std::string recording_name(const std::string& directory, const std::string& actuator) {
@@ -291,6 +292,7 @@ void Recorder::write_row(const RecordRow& r) {
   out = std::to_chars(out, end, r.unix_ns).ptr;
   *out++ = ',';
   put_text(r.xdot_measured ? "measured" : "estimated");
+  std::isfinite(r.voltage_since) ? put(r.voltage_since) : put_text("");
   out[-1] = '\n';
   const auto size = static_cast<std::size_t>(out - line);
   if (rotating_) {

@@ -16,7 +16,9 @@
 //   (c) mechanical: θ1..θ4, x0, ẋ0 on x with T̄ simulated from the thermal fit;
 //   (d) joint: every free parameter on x and T̄ weighted by 1/σ̂², σ̂² = RSS/(N − p) per channel
 //       re-estimated until it settles; with FitSettings::sample_timing_jitter, each sample weighted
-//       by (Σ + s·g gᵀ)⁻¹ instead and (σ̂x², σ̂T̄², s) re-estimated by Fisher scoring.
+//       by (Σ + s·g gᵀ)⁻¹ instead and (σ̂x², σ̂T̄², s) re-estimated by Fisher scoring, and with
+//       FitSettings::outlier_threshold, from the second round on, by Hampel's robust weights too
+//       (refine/residual_pass.cpp).
 // Then one pass at the solution gives JᵀWJ and the score's long-run covariance (covariance.hpp).
 
 #include "refine/fit.hpp"
@@ -642,10 +644,14 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
   // halving it each round.
   const bool timing = settings.sample_timing_jitter;
   double timing_var = 0.0;
+  // Robust weights (FitSettings::outlier_threshold) once s has been estimated: before that every
+  // sample with a large velocity would look like an outlier.
+  bool timing_estimated = false;
   const auto timing_settings = [&](PassSettings& ps) {
     ps.timing = timing;
     ps.timing_variance = timing_var;
     ps.timing_reference = p;
+    if (timing && timing_estimated) ps.outlier_threshold = settings.outlier_threshold;
   };
   const int rounds = timing ? 8 : 4;
   for (int round = 0; round < rounds; ++round) {
@@ -686,6 +692,9 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
       settled = variance_settled(var_x, new_var_x, 0) && variance_settled(var_t, new_var_t, 1) &&
                 std::abs(new_s - timing_var) <= 0.02 * std::max(new_s, timing_var);
       timing_var = new_s;
+      // The first round with robust weights changes the cost: not settled yet.
+      if (!timing_estimated && settings.outlier_threshold > 0.0) settled = false;
+      timing_estimated = true;
     }
     var_x = new_var_x;
     var_t = new_var_t;
@@ -719,6 +728,7 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
   const bool white_ok = final_pass.finite && inverse_on_free(final_pass.jtwj, free, white);
   const bool hac_ok = white_ok && sandwich_on_free(final_pass.jtwj, final_pass.long_run, free, hac);
   result.hac_lags = lags;
+  result.outliers = final_pass.outliers;
   result.covariance_white = white.topLeftCorner<6, 6>();
   result.covariance = hac.topLeftCorner<6, 6>();
   if (result.input_delay_estimated && white_ok && result.input_delay_sigma_s > 0.0) {

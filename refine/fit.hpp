@@ -76,7 +76,16 @@ struct FitSettings {
   // noise-free link it is most of x's residual (ẋ times the jitter): measured, 41 µs RMS leaves
   // ~4 nm, ~1e-3 in θ1..θ4 at 100 Hz. false: the stamps are exact.
   bool sample_timing_jitter = false;
+  // > 0, with sample_timing_jitter: robust weights beyond this many standard deviations
+  // (PassSettings::outlier_threshold), for stamps that a load spike displaced far beyond the
+  // jitter (a loop thread that ran a millisecond late while the gate saw nothing). 0: every
+  // sample counts fully. kOutlierThreshold2d sets aside 1 % of Gaussian samples, and those only a
+  // little.
+  double outlier_threshold = 0.0;
 };
+
+// √χ²₂(0.99): the radius within which 99 % of a two-channel Gaussian residual falls.
+inline constexpr double kOutlierThreshold2d = 3.0349;
 
 struct FitResult {
   bool converged = false;  // the solver met its tolerance and the model is stable at θ
@@ -104,6 +113,9 @@ struct FitResult {
   double input_delay_sigma_s = 0.0;
   // FitSettings::sample_timing_jitter: the estimated RMS error of the samples' instants (s).
   double sample_timing_sigma_s = 0.0;
+  // FitSettings::outlier_threshold: the samples the final pass down-weighted. The covariance is
+  // the sandwich of the weighted fit, so what they still contribute is counted in σ.
+  std::size_t outliers = 0;
 };
 
 // Fits θ, the initial state and the noise variances to `window` (at least 3 samples, t strictly

@@ -40,6 +40,12 @@ struct PassSettings {
   bool timing = false;
   double timing_variance = 0.0;
   Vector9 timing_reference = Vector9::Zero();
+  // > 0 (with `timing`): robust weights. A sample whose residual at `timing_reference`, measured
+  // in its own standard deviations m = √(rᵀWr) (W as above), exceeds this threshold a counts less
+  // (Hampel's three-part weights: a/m up to 2a, down to 0 at 3a): a stamp a load spike displaced
+  // by milliseconds (m ~ 50 where the jitter is tens of µs) does not pull the fit. Fixed by the
+  // reference like the timing weights, so every pass of one round minimizes the same cost.
+  double outlier_threshold = 0.0;
 };
 
 // Samples between two polls of PassSettings::cancel: ~1 ms of simulation.
@@ -64,6 +70,7 @@ struct PassResult {
   Eigen::Vector3d variance_score = Eigen::Vector3d::Zero();
   Eigen::Matrix3d variance_information = Eigen::Matrix3d::Zero();
   std::array<double, 2> speed_squares{};  // Σ gx², Σ gT̄² (the timing error's share per channel)
+  std::size_t outliers = 0;  // with PassSettings::outlier_threshold: samples down-weighted
 };
 
 PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,

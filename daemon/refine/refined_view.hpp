@@ -52,6 +52,7 @@ struct RefinedView {
   double input_delay_s = 0.0;
   double input_delay_sigma_s = 0.0;
   double sample_timing_sigma_s = 0.0;
+  std::uint64_t outliers = 0;  // samples the fit down-weighted (refine::FitResult::outliers)
   bool converged = false;
   int iterations = 0;
   std::array<char, kMessageChars> message{};

@@ -156,6 +156,8 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   fit_settings.max_input_delay_s =
       settings_.estimate_link_timing ? settings_.max_input_delay_s : 0.0;
   fit_settings.sample_timing_jitter = settings_.estimate_link_timing;
+  fit_settings.outlier_threshold =
+      settings_.estimate_link_timing ? scp::refine::kOutlierThreshold2d : 0.0;
 
   const auto begin = std::chrono::steady_clock::now();
   scp::refine::FitResult r = fit_(window_.samples(), start, fit_settings);
@@ -199,6 +201,7 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   v.input_delay_s = r.input_delay_s;
   v.input_delay_sigma_s = r.input_delay_sigma_s;
   v.sample_timing_sigma_s = r.sample_timing_sigma_s;
+  v.outliers = r.outliers;
   // A result with a non-finite θ̂ is no result, whatever the solver said.
   v.converged = r.converged && all_finite(v.theta_hat);
   v.iterations = r.iterations;

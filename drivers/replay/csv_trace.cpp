@@ -20,6 +20,10 @@ namespace {
 
 constexpr std::array<std::string_view, 5> kColumns = {"t", "x", "xdot", "T", "V"};
 enum Column : std::size_t { kT, kX, kXdot, kTemp, kV };
+// Optional: when the row's voltage took effect (drivers/sample.hpp, Sample::voltage_since). The
+// daemon records it on a link that stamps its writes; blank (or no such column) means the voltage
+// was applied over the whole interval.
+constexpr std::string_view kVoltageSinceColumn = "V_since";
 
 std::string num(double v) {
   char buf[32];
@@ -196,6 +200,26 @@ Trace parse_trace(std::istream& in, const std::string& path) {
 
 namespace {
 
+// V_since of one row: blank is −∞ (the whole interval); otherwise a finite time not after the
+// row's own t (a voltage cannot take effect after the sample that reports it).
+double parse_voltage_since(std::string_view text, double t, const std::string& path,
+                           std::size_t line_no, std::size_t field) {
+  if (text.empty()) return -std::numeric_limits<double>::infinity();
+  double since = 0.0;
+  if (!parse_double(text, since) || !std::isfinite(since)) {
+    fail(path, line_no,
+         column_ref(kVoltageSinceColumn, field) + ": cannot use '" + std::string(text) +
+             "'; write the time (s, same clock as t) the row's V took effect, or leave it blank "
+             "when V was applied over the whole interval");
+  }
+  if (since > t) {
+    fail(path, line_no,
+         column_ref(kVoltageSinceColumn, field) + ": " + num(since) + " is after the row's t " +
+             num(t) + "; V_since is when the voltage read at t took effect, so it cannot be later");
+  }
+  return since;
+}
+
 Trace parse_rows(std::istream& in, const std::string& path, std::size_t& header_line_out) {
   std::string raw;
   std::size_t line_no = 0;
@@ -234,6 +258,13 @@ Trace parse_rows(std::istream& in, const std::string& path, std::size_t& header_
            "column '" + std::string(kColumns[c]) + "' appears twice in the header; keep one");
     }
     index[c] = static_cast<std::size_t>(it - header.begin());
+  }
+  const auto since_it = std::find(header.begin(), header.end(), kVoltageSinceColumn);
+  const bool has_since = since_it != header.end();
+  const auto since_index = static_cast<std::size_t>(since_it - header.begin());
+  if (has_since && std::find(since_it + 1, header.end(), kVoltageSinceColumn) != header.end()) {
+    fail(path, header_line,
+         "column '" + std::string(kVoltageSinceColumn) + "' appears twice in the header; keep one");
   }
 
   Trace trace;
@@ -280,6 +311,8 @@ Trace parse_rows(std::istream& in, const std::string& path, std::size_t& header_
                "); rows must be in strictly increasing time order, without duplicates");
     }
     Sample s;
+    if (has_since)
+      s.voltage_since = parse_voltage_since(fields[since_index], v[kT], path, line_no, since_index);
     s.t = v[kT];
     s.x = v[kX];
     s.xdot = v[kXdot];

@@ -53,8 +53,10 @@ TEST(Recording, RotatingFilesWithWallClockTime) {
     ASSERT_EQ(header.at(0), "t") << f;
     const std::size_t ns_col = column(header, "unix_ns");
     const std::size_t src_col = column(header, "xdot_source");
+    const std::size_t since_col = column(header, "V_since");
     ASSERT_LT(ns_col, header.size()) << line;
     ASSERT_LT(src_col, header.size()) << line;
+    ASSERT_LT(since_col, header.size()) << line;
     while (std::getline(in, line)) {
       const auto fields = split_csv(line);
       ASSERT_EQ(fields.size(), header.size()) << f << ": " << line;
@@ -62,6 +64,8 @@ TEST(Recording, RotatingFilesWithWallClockTime) {
       EXPECT_GT(ns, last_ns) << f << ": UTC time not increasing at " << line;
       last_ns = ns;
       EXPECT_EQ(fields[src_col], "measured");
+      // The simulated driver's voltage switches at the samples: the whole interval.
+      EXPECT_EQ(fields[since_col], "") << f << ": " << line;
       ++rows;
     }
   }

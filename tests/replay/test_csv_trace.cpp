@@ -50,6 +50,34 @@ TEST(CsvTrace, RoundTripAnyColumnOrderExtraColumnsAndNotMeasuredVelocity) {
   EXPECT_EQ(t.rows[3].x, 1e-7);
 }
 
+TEST(CsvTrace, VoltageSinceIsReadWhenRecordedAndBlankMeansTheWholeInterval) {
+  const TraceFile f(
+      "t,x,xdot,T,V,V_since\n"
+      "0.010,0,0,25,0,\n"
+      "0.020,0,0,25,1.5,0.0147\n"
+      "0.030,0,0,25,1.5,\n");
+  const Trace t = load_trace(f.path());
+  ASSERT_EQ(t.rows.size(), 3u);
+  EXPECT_TRUE(std::isinf(t.rows[0].voltage_since) && t.rows[0].voltage_since < 0.0);
+  EXPECT_EQ(t.rows[1].voltage_since, 0.0147);
+  EXPECT_TRUE(std::isinf(t.rows[2].voltage_since) && t.rows[2].voltage_since < 0.0);
+  // Without the column every row has the whole interval.
+  const TraceFile plain("t,x,xdot,T,V\n0,0,0,25,0\n0.01,0,0,25,1\n");
+  EXPECT_TRUE(std::isinf(load_trace(plain.path()).rows[1].voltage_since));
+}
+
+TEST(CsvTrace, VoltageSinceAfterItsSampleOrUnreadableNamesLineAndColumn) {
+  std::string msg = error_of("t,x,xdot,T,V,V_since\n0,0,0,25,0,\n0.01,0,0,25,1,0.02\n");
+  EXPECT_NE(msg.find(":3:"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("column 'V_since' (field 6)"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("after the row's t"), std::string::npos) << msg;
+  msg = error_of("t,x,xdot,T,V,V_since\n0,0,0,25,0,\n0.01,0,0,25,1,inf\n");
+  EXPECT_NE(msg.find("column 'V_since'"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("leave it blank"), std::string::npos) << msg;
+  msg = error_of("t,x,xdot,T,V,V_since,V_since\n0,0,0,25,0,,\n0.01,0,0,25,1,,\n");
+  EXPECT_NE(msg.find("appears twice"), std::string::npos) << msg;
+}
+
 TEST(CsvTrace, InfinityLoadedAsIs) {
   const TraceFile f("t,x,xdot,T,V\n0,0,0,25,0\n0.5,inf,0,25,-inf\n");
   const Trace t = load_trace(f.path());

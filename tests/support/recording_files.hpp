@@ -27,11 +27,18 @@ inline std::vector<std::string> files_ending(const std::string& directory,
   return out;
 }
 
+// "a,b," has three fields, the last empty (a recording's V_since where the voltage held the whole
+// interval).
 inline std::vector<std::string> split_csv(const std::string& line) {
   std::vector<std::string> out;
-  std::stringstream in(line);
-  for (std::string field; std::getline(in, field, ',');) out.push_back(field);
-  return out;
+  std::size_t start = 0;
+  while (true) {
+    const std::size_t comma = line.find(',', start);
+    out.push_back(
+        line.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+    if (comma == std::string::npos) return out;
+    start = comma + 1;
+  }
 }
 
 }  // namespace scp::test
