@@ -652,6 +652,7 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
     ps.timing_variance = timing_var;
     ps.timing_reference = p;
     if (timing && timing_estimated) ps.outlier_threshold = settings.outlier_threshold;
+    ps.landing_jitter = timing && settings.landing_timing_jitter;
   };
   const int rounds = timing ? 8 : 4;
   for (int round = 0; round < rounds; ++round) {

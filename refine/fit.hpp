@@ -82,6 +82,10 @@ struct FitSettings {
   // sample counts fully. kOutlierThreshold2d sets aside 1 % of Gaussian samples, and those only a
   // little.
   double outlier_threshold = 0.0;
+  // true, with sample_timing_jitter: the voltage's landing instants are stamps of the same
+  // jitter as the samples', and the fit filters T̄ for the error they put into it
+  // (PassSettings::landing_jitter).
+  bool landing_timing_jitter = false;
 };
 
 // √χ²₂(0.99): the radius within which 99 % of a two-channel Gaussian residual falls.

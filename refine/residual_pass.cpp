@@ -65,6 +65,18 @@ double outlier_weight(double threshold, double rx, double rt, double w_xx, doubl
   return m <= 2.0 * threshold ? huber : huber * (3.0 * threshold - m) / threshold;
 }
 
+// PassSettings::landing_jitter: the variance a landing off by a random δ (variance
+// timing_variance) puts into T̄ at `cur`: (θ6·ΔV²·e^{−θ5(t − switch)})²·s. A switch at the sample
+// (voltage_since not after prev.t) has no landing of its own.
+double landing_variance(const WindowSample& prev, const WindowSample& cur, const Vector6& theta,
+                        const PassSettings& settings) {
+  const double switch_at = cur.voltage_since + settings.input_delay;
+  if (!(cur.voltage_since > prev.t) || !(switch_at < cur.t)) return 0.0;
+  const double du = cur.voltage * cur.voltage - prev.voltage * prev.voltage;
+  const double effect = theta[5] * du * std::exp(-theta[4] * (cur.t - switch_at));
+  return effect * effect * settings.timing_variance;
+}
+
 // E[min(m², c²)]/E[m²] for m² ~ χ²₂ (two channels): 1 − e^{−c²/2}; 1 without a threshold.
 double outlier_consistency(double threshold) {
   return threshold > 0.0 ? -std::expm1(-0.5 * threshold * threshold) : 1.0;
@@ -156,8 +168,17 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
     std::unique_ptr<LongRunAccumulator> hac;
     if (settings.hac_bandwidth > 0)
       hac = std::make_unique<LongRunAccumulator>(settings.hac_bandwidth);
+    // PassSettings::landing_jitter: the Kalman filter's variance of T̄'s error before (p_pred) and
+    // after (p_post) each sample's update; T̄0 is a parameter, so it starts at 0.
+    const bool landing = timing && settings.landing_jitter && wt > 0.0;
+    double p_post = 0.0;
     for (std::size_t k = 0; k < window.size(); ++k) {
       if (k > 0) sim.advance(window[k - 1], window[k], settings.input_delay);
+      double p_pred = 0.0;
+      if (landing && k > 0) {
+        p_pred = p_post * std::exp(-2.0 * ref_theta[4] * (window[k].t - window[k - 1].t)) +
+                 landing_variance(window[k - 1], window[k], ref_theta, settings);
+      }
       if (timing && k > 0) {
         advance_interval(ref_theta, window[k - 1], window[k], settings.input_delay, ref, ref_cache,
                          &ref_u);
@@ -170,49 +191,71 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
       const Vector9& jx = sim.dx();
       const Vector9& jt = sim.dtbar();
       Vector9 score;
+      double omega_k = 1.0, gt_k = 0.0;  // this sample's robust weight and dT̄/dt (timing)
       if (!timing) {
         if (wx > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, wx);
         if (wt > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jt, wt);
         score = wx * rx * jx + wt * rt * jt;
       } else {
-        // W = Σ⁻¹ − c·a aᵀ with a = Σ⁻¹g, c = s/(1 + s·q) (Sherman–Morrison).
+        // W = Σ⁻¹ − c·a aᵀ with a = Σ⁻¹g, c = s/(1 + s·q) (Sherman–Morrison); with the landings'
+        // jitter, T̄'s variance in Σ is the innovation's, σT̄² + P.
         const double s = settings.timing_variance;
         const double gx = ref.xdot;
         const double gt = -ref_theta[4] * ref.tbar + ref_theta[5] * ref_u;
-        const double ax = wx * gx, at = wt * gt;
+        const double wt_k = landing ? 1.0 / (1.0 / wt + p_pred) : wt;
+        const double ax = wx * gx, at = wt_k * gt;
         const double q = ax * gx + at * gt;
         const double c = s / (1.0 + s * q);
-        const double w_xx = wx - c * ax * ax, w_tt = wt - c * at * at, w_xt = -c * ax * at;
+        const double w_xx = wx - c * ax * ax, w_tt = wt_k - c * at * at, w_xt = -c * ax * at;
         const double omega = outlier_weight(settings.outlier_threshold, window[k].x - ref.x,
                                             window[k].tbar - ref.tbar, w_xx, w_xt, w_tt);
         if (omega < 1.0) ++r.outliers;
+        omega_k = omega;
+        gt_k = gt;
         const double u = ax * rx + at * rt;
         const Vector9 ja = ax * jx + at * jt;
         if (wx > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, omega * wx);
-        if (wt > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jt, omega * wt);
+        if (wt > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jt, omega * wt_k);
         r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(ja, -omega * c);
-        score = omega * (wx * rx * jx + wt * rt * jt - c * u * ja);
+        score = omega * (wx * rx * jx + wt_k * rt * jt - c * u * ja);
         // ResidualSums counted wx·rx² + wt·rt²: the sample's cost is ω·rᵀWr.
-        r.cost += (omega - 1.0) * (wx * rx * rx + wt * rt * rt) - omega * c * u * u;
+        r.cost +=
+            omega * (wx * rx * rx + wt_k * rt * rt - c * u * u) - (wx * rx * rx + wt * rt * rt);
         // D_x = e₁e₁ᵀ, D_T = e₂e₂ᵀ, D_s = g gᵀ.
         const double ex = w_xx * rx + w_xt * rt, et = w_xt * rx + w_tt * rt;    // W r
         const double wgx = w_xx * gx + w_xt * gt, wgt = w_xt * gx + w_tt * gt;  // W g
         const double gwg = gx * wgx + gt * wgt, ge = gx * ex + gt * et;
+        // With the landings' jitter T̄'s innovation variance has P ∝ s in it too: D_s gains
+        // π·e₂e₂ᵀ, π = P/s.
+        const double pi = landing && s > 0.0 ? p_pred / s : 0.0;
         // The variances' score with the quadratic terms weighted ω²/κ (Huber's proposal 2): a
         // down-weighted sample adds at most threshold² however far its stamp was displaced
         // (with ω·m², 0.3 % of stamps 1-3 ms off read as 50 µs of jitter instead of 41), and
         // κ = E[min(m², a²)]/2 = 1 − e^{−a²/2} for a Gaussian two-channel residual keeps the
         // estimate unbiased on clean data (the descending part changes κ by 1e-8).
         const double q2 = omega * omega / outlier_consistency(settings.outlier_threshold);
-        r.variance_score +=
-            0.5 * Eigen::Vector3d(q2 * ex * ex - w_xx, q2 * et * et - w_tt, q2 * ge * ge - gwg);
+        r.variance_score += 0.5 * Eigen::Vector3d(q2 * ex * ex - w_xx, q2 * et * et - w_tt,
+                                                  q2 * (ge * ge + pi * et * et) - gwg - pi * w_tt);
+        const double i_xs = wgx * wgx + pi * w_xt * w_xt, i_ts = wgt * wgt + pi * w_tt * w_tt;
+        const double i_ss = gwg * gwg + 2.0 * pi * wgt * wgt + pi * pi * w_tt * w_tt;
         Eigen::Matrix3d info;
-        info << w_xx * w_xx, w_xt * w_xt, wgx * wgx,  //
-            w_xt * w_xt, w_tt * w_tt, wgt * wgt,      //
-            wgx * wgx, wgt * wgt, gwg * gwg;
+        info << w_xx * w_xx, w_xt * w_xt, i_xs,  //
+            w_xt * w_xt, w_tt * w_tt, i_ts,      //
+            i_xs, i_ts, i_ss;
         r.variance_information += 0.5 * info;
         r.speed_squares[0] += gx * gx;
         r.speed_squares[1] += gt * gt;
+      }
+      if (landing) {
+        // The update, after this sample's sensitivities were used: a down-weighted sample
+        // (a displaced stamp) corrects T̄ as much less as it counts.
+        const double gain =
+            omega_k * p_pred / (1.0 / wt + p_pred + settings.timing_variance * gt_k * gt_k);
+        sim.correct_tbar(gain, rt);
+        // The reference trajectory is filtered alike, so that its residuals, which set the
+        // robust weights, are innovations too.
+        ref.tbar += gain * (window[k].tbar - ref.tbar);
+        p_post = (1.0 - gain) * p_pred;
       }
       r.jtwr += score;
       if (hac) hac->add(score);

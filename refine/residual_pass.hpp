@@ -46,6 +46,14 @@ struct PassSettings {
   // by milliseconds (m ~ 50 where the jitter is tens of µs) does not pull the fit. Fixed by the
   // reference like the timing weights, so every pass of one round minimizes the same cost.
   double outlier_threshold = 0.0;
+  // With `timing`: the voltage's landing instants (WindowSample::voltage_since) carry a random
+  // error of the same variance as the samples' (timing_variance: both are stamps of one link's
+  // transactions). A landing δ off puts θ6·ΔV²·δ into T̄ that the model does not have, and it
+  // reaches x through T̄ for seconds: process noise on the thermal state. The pass then runs a
+  // Kalman filter on T̄ (scalar: P ← e^{−2θ5h}P + q, q = (θ6·ΔV²·e^{−θ5(t − since)})²·s, gain
+  // K = P/(P + σT̄² + s·ġT̄²)), corrects the simulated T̄ with each sample's innovation and
+  // weights that innovation by its variance: a prediction-error fit on T̄, output-error on x.
+  bool landing_jitter = false;
 };
 
 // Samples between two polls of PassSettings::cancel: ~1 ms of simulation.

@@ -30,6 +30,13 @@ class SensitivitySimulator {
   // ∂x/∂p and ∂T̄/∂p at the current sample.
   const Vector9& dx() const noexcept { return dx_; }
   const Vector9& dtbar() const noexcept { return dtbar_; }
+  // A measurement update of T̄ with gain K on the innovation e = T̄ measured − T̄ (a Kalman
+  // filter's on the thermal state, refine/residual_pass.hpp): T̄ += K·e. With K held fixed,
+  // ∂T̄/∂p ← (1 − K)·∂T̄/∂p, since the measurement does not depend on p.
+  void correct_tbar(double gain, double innovation) noexcept {
+    state_.tbar += gain * innovation;
+    dtbar_ *= 1.0 - gain;
+  }
   // Mechanical sub-steps taken so far (refine/model_simulator.hpp, substeps()).
   long substeps_taken() const noexcept { return substeps_; }
 

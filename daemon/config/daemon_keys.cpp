@@ -312,7 +312,8 @@ void declare_refine(Binder refine, RefineSettings& out) {
                 "`estimate`: fit the voltage's delay relative to the instants the driver "
                 "recorded for it (a DAQ's output latency, a gateway's turnaround) from T, and the "
                 "samples' timing jitter with the noise, down-weighting samples far outside it "
-                "(stamps a load spike displaced); θ1..θ4 need both on a real link (130 µs "
+                "(stamps a load spike displaced) and filtering T for the landings' jitter; "
+                "θ1..θ4 need all of it on a real link (130 µs "
                 "of delay unmodelled costs them 15 %, docs/numerics.md). `recorded`: the "
                 "instants are exact. `auto`: estimate unless driver.type is sim");
   refine.number("max_input_delay_s", out.max_input_delay_s, 0.005, 1e-6, 1.0,

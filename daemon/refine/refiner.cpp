@@ -158,6 +158,7 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   fit_settings.sample_timing_jitter = settings_.estimate_link_timing;
   fit_settings.outlier_threshold =
       settings_.estimate_link_timing ? scp::refine::kOutlierThreshold2d : 0.0;
+  fit_settings.landing_timing_jitter = settings_.estimate_link_timing;
 
   const auto begin = std::chrono::steady_clock::now();
   scp::refine::FitResult r = fit_(window_.samples(), start, fit_settings);

@@ -136,6 +136,33 @@ inline std::vector<WindowSample> link_record(const drivers::sim::PlantParams& pa
   return w;
 }
 
+// The same link with its stamps' error: each sample's stamp and each landing's stamp off by an
+// independent Gaussian error of `jitter` (s) RMS, as transaction midpoints on a link are (the
+// plant saw the true instants).
+inline std::vector<WindowSample> jittered_link_record(const drivers::sim::PlantParams& params,
+                                                      double seconds, double jitter,
+                                                      unsigned seed) {
+  drivers::sim::Plant plant(params);
+  excitation::Excitation ex(excitation::paper_excitation());
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> period_jitter(-2e-3, 2e-3);
+  std::normal_distribution<double> stamp_error(0.0, jitter);
+  std::vector<WindowSample> w;
+  double t = 0.0, v_cur = 0.0;
+  w.push_back({0.0, 0.0, 0.0, 0.0, -1e300});
+  while (t < seconds) {
+    const double next = t + 10e-3 + period_jitter(rng);
+    const double lands = t + 3.6e-3 + stamp_error(rng);
+    const double v_prev = v_cur;
+    v_cur = ex.voltage(t);
+    plant.step(v_prev, lands - t);
+    plant.step(v_cur, next - lands);
+    t = next;
+    w.push_back({t + stamp_error(rng), plant.x(), plant.tbar(), v_cur, lands + stamp_error(rng)});
+  }
+  return w;
+}
+
 // The noise-free paper record of `seconds`, simulated once per test program.
 inline const std::vector<WindowSample>& cached_paper_record(double seconds) {
   static std::vector<std::pair<double, std::vector<WindowSample>>> cache;
