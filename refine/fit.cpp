@@ -17,8 +17,9 @@
 //   (d) joint: every free parameter on x and T̄ weighted by 1/σ̂², σ̂² = RSS/(N − p) per channel
 //       re-estimated until it settles; with FitSettings::sample_timing_jitter, each sample weighted
 //       by (Σ + s·g gᵀ)⁻¹ instead and (σ̂x², σ̂T̄², s) re-estimated by Fisher scoring, and with
-//       FitSettings::outlier_threshold, from the second round on, by Hampel's robust weights too
-//       (refine/residual_pass.cpp).
+//       FitSettings::outlier_threshold, from the second round on, by Hampel's robust weights too;
+//       with FitSettings::landing_timing_jitter, T̄ Kalman-filtered for the landings' timing
+//       error (refine/residual_pass.cpp).
 // Then one pass at the solution gives JᵀWJ and the score's long-run covariance (covariance.hpp).
 
 #include "refine/fit.hpp"

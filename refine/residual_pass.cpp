@@ -221,7 +221,7 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
         // ResidualSums counted wx·rx² + wt·rt²: the sample's cost is ω·rᵀWr.
         r.cost +=
             omega * (wx * rx * rx + wt_k * rt * rt - c * u * u) - (wx * rx * rx + wt * rt * rt);
-        // D_x = e₁e₁ᵀ, D_T = e₂e₂ᵀ, D_s = g gᵀ.
+        // D_x = e₁e₁ᵀ, D_T = e₂e₂ᵀ, D_s = g gᵀ (+ π·e₂e₂ᵀ with the landings' jitter, below).
         const double ex = w_xx * rx + w_xt * rt, et = w_xt * rx + w_tt * rt;    // W r
         const double wgx = w_xx * gx + w_xt * gt, wgt = w_xt * gx + w_tt * gt;  // W g
         const double gwg = gx * wgx + gt * wgt, ge = gx * ex + gt * et;
