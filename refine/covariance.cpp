@@ -78,6 +78,53 @@ bool sandwich_on_free(const Matrix9& normal, const Matrix9& long_run, const Free
   return true;
 }
 
+double chi_square_99_over_dof(double dof) {
+  constexpr double kZ99 = 2.3263478740408408;
+  const double v = 2.0 / (9.0 * std::max(1.0, dof));
+  const double c = 1.0 - v + kZ99 * std::sqrt(v);
+  return c * c * c;
+}
+
+BatchMeansCheck check_against_batch_means(Matrix9& covariance, const Matrix9& normal,
+                                          std::span<const Vector9> batch_scores,
+                                          std::span<const Matrix9> batch_information,
+                                          const FreeMask& free) {
+  BatchMeansCheck out;
+  const std::size_t k = batch_scores.size();
+  if (k < 2 || batch_information.size() != k) return out;
+  Matrix9 inverse;
+  if (!inverse_on_free(normal, free, inverse)) return out;
+  Matrix9 outer = Matrix9::Zero();
+  for (const Vector9& g : batch_scores) outer.noalias() += g * g.transpose();
+  out.covariance = inverse * outer * inverse;
+  // Per coordinate i, with a = N⁻¹e_i: y_b = aᵀĝ_b, ĝ_b = g_b − H_b N⁻¹ Σ_c g_c the score at θ̂.
+  // Under white residuals (Cov g_b = H_b, independent) Cov(y_b, y_c) = δ_bc·aᵀH_b a −
+  // u_bᵀN⁻¹u_c, u_b = H_b a: M. Σ y_b² = the batch-means variance has mean tr M and variance
+  // 2·tr M² (Gaussian scores), a χ² of ν = (tr M)²/tr M² degrees of freedom scaled by tr M/ν.
+  Eigen::MatrixXd m(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(k));
+  Eigen::Matrix<double, kParams, Eigen::Dynamic> u(kParams, static_cast<Eigen::Index>(k));
+  for (int i = 0; i < kParams; ++i) {
+    const double hac = covariance(i, i);
+    if (!free[i] || !(hac > 0.0)) continue;
+    const Vector9 a = inverse.col(i);
+    for (std::size_t b = 0; b < k; ++b)
+      u.col(static_cast<Eigen::Index>(b)) = batch_information[b] * a;
+    m.noalias() = -u.transpose() * inverse * u;
+    for (std::size_t b = 0; b < k; ++b)
+      m(static_cast<Eigen::Index>(b), static_cast<Eigen::Index>(b)) +=
+          a.dot(u.col(static_cast<Eigen::Index>(b)));
+    const double mean = m.trace(), spread = m.squaredNorm();
+    if (!(mean > 0.0) || !(spread > 0.0)) continue;
+    // Scaled to N⁻¹'s own variance, which Newey–West's estimates.
+    out.ratio[i] = out.covariance(i, i) * inverse(i, i) / (mean * hac);
+    out.dof[i] = mean * mean / spread;
+    if (std::isfinite(out.ratio[i]) && out.ratio[i] > chi_square_99_over_dof(out.dof[i]))
+      out.factor[i] = std::sqrt(out.ratio[i]);
+  }
+  covariance = out.factor.asDiagonal() * covariance * out.factor.asDiagonal();
+  return out;
+}
+
 int automatic_hac_lags(std::size_t samples, double rho) {
   const double n = static_cast<double>(samples);
   const double fixed = std::floor(4.0 * std::pow(n / 100.0, 2.0 / 9.0));

@@ -7,9 +7,15 @@
 // score s_k = J_kᵀW r_k. For white residuals S ≈ JᵀWJ and the two agree; for coloured sensor noise
 // (a low-pass in the sensor, mains pickup) neighbouring residuals carry the same information
 // twice and the white covariance is too small by about the noise's correlation time in samples.
+// Batch means: the same sandwich with S from the score summed over K contiguous batches, which
+// sees correlation however far it reaches within a batch. Newey–West's lags follow the residuals'
+// lag-one correlation, so an error that is small per sample but slow (a link's landings put
+// seconds-long errors into x under a jitter that is white per sample) escapes it; the batch means
+// are the check on it.
 
 #include <array>
 #include <cstddef>
+#include <span>
 
 #include "refine/model_simulator.hpp"
 
@@ -24,6 +30,36 @@ bool inverse_on_free(const Matrix9& normal, const FreeMask& free, Matrix9& inver
 // (N⁻¹) S (N⁻¹) on the free coordinates.
 bool sandwich_on_free(const Matrix9& normal, const Matrix9& long_run, const FreeMask& free,
                       Matrix9& covariance);
+
+// The batch-means check on `covariance` (Newey–West's) from the score g_b and the information
+// H_b summed over K contiguous batches of the window (PassResult::batch_scores,
+// batch_information), N = Σ H_b. The batch-means covariance is N⁻¹(Σ g_b g_bᵀ)N⁻¹. Two things
+// make it differ from Newey–West's even when both are right, and both are taken into account:
+// - at θ̂ the scores sum to zero, which removes Σ_b H_b N⁻¹ H_b from E[Σ g_b g_bᵀ] (with equal
+//   batches a 1/K share: K/(K−1), the usual correction); here it is computed from the H_b, since
+//   an excitation's information is rarely equal across batches;
+// - with unequal batches the K terms do not count alike: the variance is a χ² of
+//   ν_i = (Σ_b c_bi)²/Σ_b c_bi² degrees of freedom (Satterthwaite), c_bi = (N⁻¹H_bN⁻¹)_ii, fewer
+//   than K (measured on the paper's excitation, 60 s: the ratio to Newey–West spread 0.35–2.2
+//   over 20 white-noise seeds, where χ²₁₉/19 would give 0.5–1.6).
+// A coordinate whose corrected batch-means variance exceeds Newey–West's beyond the 99 % point of
+// χ²_ν/ν is scaled by √(ratio); the others keep factor 1. `covariance` becomes D·covariance·D,
+// its correlations kept. At 99 % one white-noise window in a hundred is scaled for nothing; what
+// the check lets through is a σ at most √(χ²_ν(0.99)/ν) too small (1.4–1.9×).
+struct BatchMeansCheck {
+  Vector9 factor = Vector9::Ones();      // what scaled each σ (1: not significant, or not free)
+  Vector9 ratio = Vector9::Zero();       // corrected batch-means variance / Newey–West's
+  Vector9 dof = Vector9::Zero();         // ν_i
+  Matrix9 covariance = Matrix9::Zero();  // N⁻¹(Σ g_b g_bᵀ)N⁻¹, uncorrected
+};
+
+BatchMeansCheck check_against_batch_means(Matrix9& covariance, const Matrix9& normal,
+                                          std::span<const Vector9> batch_scores,
+                                          std::span<const Matrix9> batch_information,
+                                          const FreeMask& free);
+
+// The 99 % point of χ²_ν / ν (Wilson–Hilferty: within 1 % for ν ≥ 2).
+double chi_square_99_over_dof(double dof);
 
 // Newey–West lags for N samples whose residuals have lag-one autocorrelation rho: the larger of
 // Newey and West's fixed rule floor(4·(N/100)^(2/9)) and Andrews' (1991) AR(1) plug-in for the

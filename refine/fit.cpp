@@ -20,7 +20,8 @@
 //       FitSettings::outlier_threshold, from the second round on, by Hampel's robust weights too;
 //       with FitSettings::landing_timing_jitter, T̄ Kalman-filtered for the landings' timing
 //       error (refine/residual_pass.cpp).
-// Then one pass at the solution gives JᵀWJ and the score's long-run covariance (covariance.hpp).
+// Then one pass at the solution gives JᵀWJ and the score's long-run covariance (covariance.hpp):
+// Newey–West's, checked by batch means.
 
 #include "refine/fit.hpp"
 
@@ -723,6 +724,7 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
   ps.weight = {1.0 / var_x, 1.0 / var_t};
   timing_settings(ps);
   ps.hac_bandwidth = lags + 1;
+  ps.batches = settings.covariance_batches;
   const PassResult final_pass = budget.pass(window, p, ps);
   result.evaluations = budget.evaluations();
   if (final_pass.cancelled) return stopped_here("cancelled");
@@ -732,6 +734,14 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
   result.hac_lags = lags;
   result.outliers = final_pass.outliers;
   result.covariance_white = white.topLeftCorner<6, 6>();
+  if (hac_ok) {
+    const BatchMeansCheck check = check_against_batch_means(
+        hac, final_pass.jtwj, final_pass.batch_scores, final_pass.batch_information, free);
+    result.covariance_batch = check.covariance.topLeftCorner<6, 6>();
+    result.batch_inflation = check.factor.head<6>();
+    result.batch_ratio = check.ratio.head<6>();
+    result.batch_dof = check.dof.head<6>();
+  }
   result.covariance = hac.topLeftCorner<6, 6>();
   if (result.input_delay_estimated && white_ok && result.input_delay_sigma_s > 0.0) {
     // What σ_d does to θ: the Gauss–Newton step from this solution to the fit at d̂ + σ_d (one

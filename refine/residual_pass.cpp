@@ -47,6 +47,49 @@ class LongRunAccumulator {
   long windows_ = 0;
 };
 
+// PassSettings::batches: the score and the information summed over K contiguous batches of
+// (nearly) equal sample count, into PassResult::batch_scores and batch_information. The
+// information is jtwj's growth over the batch (jtwj is accumulated in its upper triangle).
+class BatchSums {
+ public:
+  BatchSums(int batches, std::size_t samples, PassResult& out)
+      : batches_(batches > 1 && samples >= static_cast<std::size_t>(batches) ? batches : 0),
+        samples_(samples),
+        out_(out) {
+    out_.batch_scores.assign(static_cast<std::size_t>(batches_), Vector9::Zero());
+    out_.batch_information.assign(static_cast<std::size_t>(batches_), Matrix9::Zero());
+  }
+
+  // Before sample k's contributions are added to `jtwj`.
+  void begin_sample(std::size_t k, const Matrix9& jtwj) {
+    if (batches_ == 0) return;
+    const auto b = static_cast<int>(k * static_cast<std::size_t>(batches_) / samples_);
+    if (b == current_) return;
+    finish(jtwj);
+    current_ = b;
+    jtwj_at_start_ = jtwj;
+  }
+
+  void add_score(const Vector9& score) {
+    if (current_ >= 0) out_.batch_scores[static_cast<std::size_t>(current_)] += score;
+  }
+
+  // After the last sample.
+  void finish(const Matrix9& jtwj) {
+    if (current_ < 0) return;
+    Matrix9 h = jtwj - jtwj_at_start_;
+    out_.batch_information[static_cast<std::size_t>(current_)] = h.selfadjointView<Eigen::Upper>();
+    current_ = -1;
+  }
+
+ private:
+  int batches_;
+  std::size_t samples_;
+  PassResult& out_;
+  int current_ = -1;
+  Matrix9 jtwj_at_start_ = Matrix9::Zero();
+};
+
 // Hampel's three-part weight of a sample whose residual r (at the reference trajectory) has the
 // weight matrix W = [w_xx w_xt; w_xt w_tt], m = √(rᵀWr), a = threshold: 1 up to a; a/m (Huber's)
 // up to 2a; then falling linearly to 0 at 3a, beyond which the sample does not count. A Gaussian
@@ -172,6 +215,7 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
     // after (p_post) each sample's update; T̄0 is a parameter, so it starts at 0.
     const bool landing = timing && settings.landing_jitter && wt > 0.0;
     double p_post = 0.0;
+    BatchSums batch_sums(settings.batches, window.size(), r);
     for (std::size_t k = 0; k < window.size(); ++k) {
       if (k > 0) sim.advance(window[k - 1], window[k], settings.input_delay);
       double p_pred = 0.0;
@@ -188,6 +232,7 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
         break;
       }
       sums.add(k, window[k], sim.state(), rx, rt);
+      batch_sums.begin_sample(k, r.jtwj);
       const Vector9& jx = sim.dx();
       const Vector9& jt = sim.dtbar();
       Vector9 score;
@@ -259,7 +304,9 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
       }
       r.jtwr += score;
       if (hac) hac->add(score);
+      batch_sums.add_score(score);
     }
+    batch_sums.finish(r.jtwj);
     r.jtwj = r.jtwj.selfadjointView<Eigen::Upper>();
     if (hac) r.long_run = hac->result();
     r.substeps = sim.substeps_taken();

@@ -7,6 +7,7 @@
 #include <array>
 #include <atomic>
 #include <span>
+#include <vector>
 
 #include "refine/model_simulator.hpp"
 
@@ -21,6 +22,9 @@ struct PassSettings {
   // > 0: also accumulate the Bartlett long-run covariance of the score with this bandwidth
   // (lags + 1), for the Newey–West covariance.
   int hac_bandwidth = 0;
+  // > 1: also sum the score and the information over this many contiguous batches of equal
+  // sample count (PassResult::batch_scores, batch_information), for the batch-means check.
+  int batches = 0;
   // > 0: give up (finite = false, too_stiff = true) once the simulation has taken more sub-steps
   // than this: a model stiffer than the caller can afford (refine/fit.cpp bounds it by what the
   // window's sampling can show), not a reason to spend minutes on one pass.
@@ -67,6 +71,10 @@ struct PassResult {
   std::array<double, 2> rss{};         // Σ r² per channel (unweighted)
   std::array<double, 2> lag1{};        // Σ r_k·r_{k−1} per channel: the residuals' colour
   Matrix9 long_run = Matrix9::Zero();  // Σ_{|l|<B} (1 − |l|/B)·Σ_k s_k s_{k+l}ᵀ, s_k = J_kᵀW r_k
+  // With PassSettings::batches = K: per batch b, the score g_b = Σ_{k∈b} s_k and the information
+  // H_b = Σ_{k∈b} J_kᵀW J_k (its share of jtwj); empty otherwise.
+  std::vector<Vector9> batch_scores;
+  std::vector<Matrix9> batch_information;
   double tbar_min = 0.0, tbar_max = 0.0;  // range of the model's T̄ (damping positivity check)
   std::size_t samples = 0;
   long substeps = 0;       // model sub-steps simulated (the pass's cost)

@@ -88,11 +88,12 @@ struct StateSettings {
 // thread below the loop fits θ to a sliding window of the samples the estimator was fed.
 struct RefineSettings {
   bool enabled = true;
-  double window_s = 300.0;     // the sliding window fitted (memory: see docs/configuration.md)
-  double interval_s = 10.0;    // a fit every this much loop time
-  double min_window_s = 30.0;  // no fit on a window shorter than this
-  int max_iterations = 100;    // of the Gauss-Newton / Levenberg-Marquardt solver
-  int hac_lags = 0;            // Newey-West lags of the covariance; 0 = automatic
+  double window_s = 300.0;      // the sliding window fitted (memory: see docs/configuration.md)
+  double interval_s = 10.0;     // a fit every this much loop time
+  double min_window_s = 30.0;   // no fit on a window shorter than this
+  int max_iterations = 100;     // of the Gauss-Newton / Levenberg-Marquardt solver
+  int hac_lags = 0;             // Newey-West lags of the covariance; 0 = automatic
+  int covariance_batches = 20;  // the batch-means check on σ (refine/covariance.hpp); < 2 = off
   // A longer step between samples starts a new window; the model simulates through shorter ones
   // (missed periods, a failed read) with the voltage the DAC held.
   double max_gap_s = 0.2;

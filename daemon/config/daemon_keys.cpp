@@ -302,6 +302,15 @@ void declare_refine(Binder refine, RefineSettings& out) {
                  "residual autocorrelation lags of the Newey-West covariance; 0 = automatic "
                  "(floor(4·(N/100)^(2/9)))");
   out.hac_lags = static_cast<int>(lags);
+  std::int64_t batches = 0;
+  refine.integer("covariance_batches", batches, 20, 0, 1000,
+                 "batches of the batch-means check on σ: a σ is scaled up "
+                 "(`refined.sigma_inflation`) where the score summed over this many contiguous "
+                 "batches of the window varies significantly (99 %) more than the Newey–West "
+                 "covariance allows, i.e. an error slower than its lags (a link's timing: "
+                 "2.3–3× measured on a live 10 ms link). 0 or 1 = no check (docs/numerics.md, "
+                 "\"σ on a real link\")");
+  out.covariance_batches = static_cast<int>(batches);
   refine.number("max_gap_s", out.max_gap_s, 0.2, 1e-4, 60.0,
                 "a step between two samples longer than this starts a new window. Shorter gaps "
                 "(missed periods, failed reads, a stalled link) are simulated through with the "

@@ -152,6 +152,7 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   fit_settings.max_iterations = settings_.max_iterations;
   fit_settings.known = known_;
   fit_settings.hac_lags = settings_.hac_lags;
+  fit_settings.covariance_batches = settings_.covariance_batches;
   fit_settings.cancel = cancel_;
   fit_settings.max_input_delay_s =
       settings_.estimate_link_timing ? settings_.max_input_delay_s : 0.0;
@@ -193,6 +194,7 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   v.seed = seed;
   v.theta_hat = to_array6(r.theta);
   v.sigma = to_array6(r.sigma);
+  v.sigma_inflation = to_array6(r.batch_inflation);
   v.t_begin = r.t_begin;
   v.t_end = r.t_end;
   v.samples = r.samples;

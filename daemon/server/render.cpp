@@ -96,6 +96,7 @@ void put_refinement(json& out, const EstimateView& estimate, const refine::Refin
   json o = json::object();
   o["theta_hat"] = number_array(r.theta_hat);
   o["sigma"] = number_array(r.sigma);
+  o["sigma_inflation"] = number_array(r.sigma_inflation);
   json window = json::object();
   put_finite(window, "t_begin", r.t_begin);
   put_finite(window, "t_end", r.t_end);

@@ -95,6 +95,8 @@ TEST(Config, RefineSection) {
   EXPECT_EQ(error_of("loop: {period_s: 0.0001}\nrefine: {enabled: false, window_s: 200}\n"),
             "(no error)");
   EXPECT_NE(error_of("refine: {hac_lags: -1}\n").find("refine.hac_lags"), std::string::npos);
+  EXPECT_NE(error_of("refine: {covariance_batches: 1001}\n").find("refine.covariance_batches"),
+            std::string::npos);
 }
 
 // estimator.known: six entries, each 0 (estimated) or 1 (known, held at theta0).

@@ -87,6 +87,7 @@ class RefinerTest : public ::testing::Test {
     settings_.min_window_s = 3.0;
     settings_.max_iterations = 17;
     settings_.hac_lags = 5;
+    settings_.covariance_batches = 7;
     estimator_.theta0 << 1, 2, 3, 4, 5, 6;
     settings_.max_gap_s = 10 * kPeriod;
   }
@@ -212,6 +213,7 @@ TEST_F(RefinerTest, SettingsAndKnownParametersReachTheFit) {
   const FitSettings& s = calls_[0].settings;
   EXPECT_EQ(s.max_iterations, 17);
   EXPECT_EQ(s.hac_lags, 5);
+  EXPECT_EQ(s.covariance_batches, 7);
   EXPECT_TRUE(s.known[2]);
   EXPECT_FALSE(s.known[0]);
   // A known parameter starts (and stays) at theta0 whatever the seed.

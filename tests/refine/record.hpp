@@ -50,6 +50,10 @@ struct Noise {
   // Correlation time in samples of a first-order low-pass the x noise goes through (0: white);
   // its output is rescaled to keep the standard deviation `x`.
   double x_correlation_samples = 0.0;
+  // A second, slow component of the x noise: standard deviation (m) and correlation time in
+  // samples (a drift, a thermal creep of the sensor's mount).
+  double x_slow = 0.0;
+  double x_slow_correlation_samples = 0.0;
   unsigned seed = 1;
 };
 
@@ -93,10 +97,19 @@ inline std::vector<WindowSample> with_noise(std::vector<WindowSample> w, const N
   const double rho =
       noise.x_correlation_samples > 0.0 ? std::exp(-1.0 / noise.x_correlation_samples) : 0.0;
   const double gain = std::sqrt(1.0 - rho * rho);
+  const double rho_slow = noise.x_slow_correlation_samples > 0.0
+                              ? std::exp(-1.0 / noise.x_slow_correlation_samples)
+                              : 0.0;
+  const double gain_slow = std::sqrt(1.0 - rho_slow * rho_slow);
   double coloured = gauss(rng);
+  double slow = noise.x_slow > 0.0 ? gauss(rng) : 0.0;
   for (WindowSample& s : w) {
     coloured = rho * coloured + gain * gauss(rng);
     s.x += noise.x * coloured;
+    if (noise.x_slow > 0.0) {
+      slow = rho_slow * slow + gain_slow * gauss(rng);
+      s.x += noise.x_slow * slow;
+    }
     s.tbar += noise.tbar * gauss(rng);
   }
   return w;
