@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "refine/sensitivities.hpp"
@@ -48,45 +50,58 @@ class LongRunAccumulator {
 };
 
 // PassSettings::batches: the score and the information summed over K contiguous batches of
-// (nearly) equal sample count, into PassResult::batch_scores and batch_information. The
-// information is jtwj's growth over the batch (jtwj is accumulated in its upper triangle).
+// (nearly) equal sample count, for PassResult::batch_scores and batch_information. The
+// information is jtwj's growth over the batch (jtwj is accumulated in its upper triangle). The
+// pass's loop touches it only at a batch's first sample and through the pointer begin_batch()
+// returns, so that a pass without batches runs as fast as before it existed.
 class BatchSums {
  public:
-  BatchSums(int batches, std::size_t samples, PassResult& out)
-      : batches_(batches > 1 && samples >= static_cast<std::size_t>(batches) ? batches : 0),
+  BatchSums(int batches, std::size_t samples)
+      : batches_(batches > 1 && samples >= static_cast<std::size_t>(batches)
+                     ? static_cast<std::size_t>(batches)
+                     : 0),
         samples_(samples),
-        out_(out) {
-    out_.batch_scores.assign(static_cast<std::size_t>(batches_), Vector9::Zero());
-    out_.batch_information.assign(static_cast<std::size_t>(batches_), Matrix9::Zero());
-  }
+        next_start_(batches_ > 0 ? 0 : std::numeric_limits<std::size_t>::max()),
+        scores_(batches_, Vector9::Zero()),
+        information_(batches_, Matrix9::Zero()) {}
 
-  // Before sample k's contributions are added to `jtwj`.
-  void begin_sample(std::size_t k, const Matrix9& jtwj) {
-    if (batches_ == 0) return;
-    const auto b = static_cast<int>(k * static_cast<std::size_t>(batches_) / samples_);
-    if (b == current_) return;
+  // The first sample of the next batch (never, without batches).
+  std::size_t next_start() const { return next_start_; }
+
+  // At sample k = next_start(), before its contributions to `jtwj`: closes the batch before and
+  // returns where this one's score is summed.
+  Vector9* begin_batch(std::size_t k, const Matrix9& jtwj) {
     finish(jtwj);
-    current_ = b;
+    current_ = k * batches_ / samples_;
+    open_ = true;
     jtwj_at_start_ = jtwj;
+    const std::size_t b = current_ + 1;  // the first k with k·K/N ≥ b
+    next_start_ = b >= batches_ ? std::numeric_limits<std::size_t>::max()
+                                : (b * samples_ + batches_ - 1) / batches_;
+    return &scores_[current_];
   }
 
-  void add_score(const Vector9& score) {
-    if (current_ >= 0) out_.batch_scores[static_cast<std::size_t>(current_)] += score;
-  }
-
-  // After the last sample.
+  // After the last sample: closes the open batch.
   void finish(const Matrix9& jtwj) {
-    if (current_ < 0) return;
-    Matrix9 h = jtwj - jtwj_at_start_;
-    out_.batch_information[static_cast<std::size_t>(current_)] = h.selfadjointView<Eigen::Upper>();
-    current_ = -1;
+    if (!open_) return;
+    const Matrix9 h = jtwj - jtwj_at_start_;
+    information_[current_] = h.selfadjointView<Eigen::Upper>();
+    open_ = false;
+  }
+
+  void move_into(PassResult& r) {
+    r.batch_scores = std::move(scores_);
+    r.batch_information = std::move(information_);
   }
 
  private:
-  int batches_;
+  std::size_t batches_;
   std::size_t samples_;
-  PassResult& out_;
-  int current_ = -1;
+  std::size_t next_start_;
+  std::vector<Vector9> scores_;
+  std::vector<Matrix9> information_;
+  std::size_t current_ = 0;
+  bool open_ = false;
   Matrix9 jtwj_at_start_ = Matrix9::Zero();
 };
 
@@ -215,7 +230,9 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
     // after (p_post) each sample's update; T̄0 is a parameter, so it starts at 0.
     const bool landing = timing && settings.landing_jitter && wt > 0.0;
     double p_post = 0.0;
-    BatchSums batch_sums(settings.batches, window.size(), r);
+    BatchSums batch_sums(settings.batches, window.size());
+    std::size_t next_batch = batch_sums.next_start();
+    Vector9* batch_score = nullptr;
     for (std::size_t k = 0; k < window.size(); ++k) {
       if (k > 0) sim.advance(window[k - 1], window[k], settings.input_delay);
       double p_pred = 0.0;
@@ -232,7 +249,10 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
         break;
       }
       sums.add(k, window[k], sim.state(), rx, rt);
-      batch_sums.begin_sample(k, r.jtwj);
+      if (k == next_batch) [[unlikely]] {
+        batch_score = batch_sums.begin_batch(k, r.jtwj);
+        next_batch = batch_sums.next_start();
+      }
       const Vector9& jx = sim.dx();
       const Vector9& jt = sim.dtbar();
       Vector9 score;
@@ -304,9 +324,10 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
       }
       r.jtwr += score;
       if (hac) hac->add(score);
-      batch_sums.add_score(score);
+      if (batch_score != nullptr) *batch_score += score;
     }
     batch_sums.finish(r.jtwj);
+    batch_sums.move_into(r);
     r.jtwj = r.jtwj.selfadjointView<Eigen::Upper>();
     if (hac) r.long_run = hac->result();
     r.substeps = sim.substeps_taken();
