@@ -310,7 +310,7 @@ TEST(Fit, TheLandingsJitterIsFilteredOutOfTbar) {
   const auto params = test::paper_actuator();
   const Vector6 truth = test::theta_of(params);
   constexpr double kJitter = 41e-6;
-  double worst_plain = 0.0, worst = 0.0, worst_z = 0.0;
+  double worst_plain = 0.0, worst = 0.0, worst_z = 0.0, mean_factor = 0.0;
   for (unsigned seed = 1; seed <= 4; ++seed) {
     const auto w = test::jittered_link_record(params, 120.0, kJitter, seed);
     FitSettings settings;
@@ -321,19 +321,30 @@ TEST(Fit, TheLandingsJitterIsFilteredOutOfTbar) {
     const FitResult filtered = fit(w, truth * 1.1, settings);
     const double plain_error = mechanical_error(plain.theta, truth);
     const double error = mechanical_error(filtered.theta, truth);
+    // |error| / σ of θ1 (θ1..θ4 err together), θ5 and θ6.
+    double z = error / (filtered.sigma[0] / truth[0]);
+    for (int i : {4, 5})
+      z = std::max(z, std::abs(filtered.theta[i] - truth[i]) / filtered.sigma[i]);
     std::printf(
         "seed %u, samples and landings stamped with %.0f us of jitter: theta1..4 %.3g (sigma "
-        "%.3g) as output error, %.3g (sigma %.3g, jitter %.1f us) with T-bar filtered\n",
+        "%.3g) as output error, %.3g (sigma %.3g, jitter %.1f us) with T-bar filtered; worst "
+        "error/sigma of theta1, 5, 6 %.2f, sigma scaled by batch means x%.2f (theta1)\n",
         seed, kJitter * 1e6, plain_error, plain.sigma[0] / truth[0], error,
-        filtered.sigma[0] / truth[0], filtered.sample_timing_sigma_s * 1e6);
+        filtered.sigma[0] / truth[0], filtered.sample_timing_sigma_s * 1e6, z,
+        filtered.batch_inflation[0]);
     EXPECT_TRUE(filtered.converged) << filtered.message;
     worst_plain = std::max(worst_plain, plain_error);
     worst = std::max(worst, error);
-    worst_z = std::max(worst_z, error / (filtered.sigma[0] / truth[0]));
+    worst_z = std::max(worst_z, z);
+    mean_factor += filtered.batch_inflation[0] / 4;
   }
-  // Measured: worst 2.6e-3 without, 3.2e-4 with; error/σ at most 1.9.
+  // Measured: worst 2.6e-3 without, 3.2e-4 with. The landings' errors the filter takes out of T̄
+  // stay in x for the slow pole's 0.7 s, slower than the Newey–West lags see: the batch-means
+  // check scales σ by 1.9-2.5 (the live link: 2.2-2.6), and error/σ of θ1, θ5, θ6 is then at
+  // most 1.6 (up to 3.6 before the check).
   EXPECT_LT(worst, worst_plain / 3.0);
-  EXPECT_LT(worst_z, 3.0);
+  EXPECT_LT(worst_z, 2.5);
+  EXPECT_GT(mean_factor, 1.5);
 }
 
 }  // namespace
