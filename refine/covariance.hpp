@@ -38,10 +38,12 @@ bool sandwich_on_free(const Matrix9& normal, const Matrix9& long_run, const Free
 // - at θ̂ the scores sum to zero, which removes Σ_b H_b N⁻¹ H_b from E[Σ g_b g_bᵀ] (with equal
 //   batches a 1/K share: K/(K−1), the usual correction); here it is computed from the H_b, since
 //   an excitation's information is rarely equal across batches;
-// - with unequal batches the K terms do not count alike: the variance is a χ² of
-//   ν_i = (Σ_b c_bi)²/Σ_b c_bi² degrees of freedom (Satterthwaite), c_bi = (N⁻¹H_bN⁻¹)_ii, fewer
-//   than K (measured on the paper's excitation, 60 s: the ratio to Newey–West spread 0.35–2.2
-//   over 20 white-noise seeds, where χ²₁₉/19 would give 0.5–1.6).
+// - with unequal batches the K terms do not count alike, and the zero sum ties them: the
+//   batch-means variance of θ_i is a quadratic form in Gaussian scores whose mean and variance
+//   follow from the H_b exactly (refine/covariance.cpp), a χ² of ν_i = (tr M)²/tr M² degrees of
+//   freedom (Satterthwaite), fewer than K (measured on the paper's excitation: ν = 14 and 11 for
+//   θ1..θ4 and θ5, θ6 in 60 s, 16 and 12 in 300 s; the ratio to Newey–West spread 0.35–2.45 over
+//   100 white-noise seeds, where χ²₁₉/19 would give 0.5–1.6).
 // A coordinate whose corrected batch-means variance exceeds Newey–West's beyond the 99 % point of
 // χ²_ν/ν is scaled by √(ratio); the others keep factor 1. `covariance` becomes D·covariance·D,
 // its correlations kept. At 99 % one white-noise window in a hundred is scaled for nothing; what
