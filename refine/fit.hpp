@@ -54,7 +54,7 @@ struct FitSettings {
   int hac_lags = 0;
   // Batches of the batch-means check on the covariance (refine/covariance.hpp,
   // FitResult::batch_inflation); < 2 turns it off. 20: 15 s each in a 300 s window, far longer
-  // than the mechanical slow pole's 0.7 s, and enough of them for ~14-18 degrees of freedom on
+  // than the mechanical slow pole's 0.7 s, and enough of them for ~11-18 degrees of freedom on
   // the paper's voltage, so that a 99 % test flags a σ 1.4× too small.
   int covariance_batches = 20;
   // Bounds on the work of one fit, whatever the data: residual passes over the window (each
