@@ -737,7 +737,6 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
   if (hac_ok) {
     const BatchMeansCheck check = check_against_batch_means(
         hac, final_pass.jtwj, final_pass.batch_scores, final_pass.batch_information, free);
-    result.covariance_batch = check.covariance.topLeftCorner<6, 6>();
     result.batch_inflation = check.factor.head<6>();
     result.batch_ratio = check.ratio.head<6>();
     result.batch_dof = check.dof.head<6>();

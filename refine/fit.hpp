@@ -88,8 +88,8 @@ struct FitSettings {
   // little.
   double outlier_threshold = 0.0;
   // true, with sample_timing_jitter: the voltage's landing instants are stamps of the same
-  // jitter as the samples', and the fit filters T̄ for the error they put into it
-  // (PassSettings::landing_jitter).
+  // jitter as the samples', and the fit filters the state for the error they put into T̄ and,
+  // through it, into x (PassSettings::landing_jitter, refine/landing_filter.hpp).
   bool landing_timing_jitter = false;
 };
 
@@ -108,12 +108,11 @@ struct FitResult {
   // (JᵀWJ)⁻¹ with W from the estimated noise variances: right for white sensor noise only.
   Matrix6 covariance_white = Matrix6::Zero();
   Vector6 sigma_white = Vector6::Zero();
-  // The batch-means covariance (FitSettings::covariance_batches, uncorrected), the factor by
-  // which the check scaled each σ of `covariance` (1: not significantly larger than
-  // Newey–West's), the corrected ratio it tested and its degrees of freedom. Measured on 300 s of
+  // The batch-means check (FitSettings::covariance_batches): the factor by which it scaled each σ
+  // of `covariance` (1: not significantly larger than Newey–West's), the corrected ratio it
+  // tested and its degrees of freedom. Measured on 300 s of
   // a live 10 ms link: factors 2.2-2.6 on θ1..θ4 and 2.8-3.2 on θ5, θ6; on simulated white sensor
   // noise one run in 180 scaled one σ (scripts/montecarlo).
-  Matrix6 covariance_batch = Matrix6::Zero();
   Vector6 batch_inflation = Vector6::Ones();
   Vector6 batch_ratio = Vector6::Zero();  // batch-means variance / Newey–West's, corrected
   Vector6 batch_dof = Vector6::Zero();    // its degrees of freedom

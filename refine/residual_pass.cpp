@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "refine/landing_filter.hpp"
 #include "refine/sensitivities.hpp"
 
 namespace scp::refine {
@@ -123,16 +124,12 @@ double outlier_weight(double threshold, double rx, double rt, double w_xx, doubl
   return m <= 2.0 * threshold ? huber : huber * (3.0 * threshold - m) / threshold;
 }
 
-// PassSettings::landing_jitter: the variance a landing off by a random δ (variance
-// timing_variance) puts into T̄ at `cur`: (θ6·ΔV²·e^{−θ5(t − switch)})²·s. A switch at the sample
-// (voltage_since not after prev.t) has no landing of its own.
-double landing_variance(const WindowSample& prev, const WindowSample& cur, const Vector6& theta,
-                        const PassSettings& settings) {
-  const double switch_at = cur.voltage_since + settings.input_delay;
+// PassSettings::landing_jitter: how long before `cur` the voltage switched inside (prev, cur]
+// (0: at the sample, or not at all: voltage_since not after prev.t has no landing of its own).
+double since_landing(const WindowSample& prev, const WindowSample& cur, double input_delay) {
+  const double switch_at = cur.voltage_since + input_delay;
   if (!(cur.voltage_since > prev.t) || !(switch_at < cur.t)) return 0.0;
-  const double du = cur.voltage * cur.voltage - prev.voltage * prev.voltage;
-  const double effect = theta[5] * du * std::exp(-theta[4] * (cur.t - switch_at));
-  return effect * effect * settings.timing_variance;
+  return cur.t - switch_at;
 }
 
 // E[min(m², c²)]/E[m²] for m² ~ χ²₂ (two channels): 1 − e^{−c²/2}; 1 without a threshold.
@@ -226,23 +223,25 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
     std::unique_ptr<LongRunAccumulator> hac;
     if (settings.hac_bandwidth > 0)
       hac = std::make_unique<LongRunAccumulator>(settings.hac_bandwidth);
-    // PassSettings::landing_jitter: the Kalman filter's variance of T̄'s error before (p_pred) and
-    // after (p_post) each sample's update; T̄0 is a parameter, so it starts at 0.
+    // PassSettings::landing_jitter: the Kalman filter on [x, ẋ, T̄] (refine/landing_filter.hpp).
     const bool landing = timing && settings.landing_jitter && wt > 0.0;
-    double p_post = 0.0;
+    LandingFilter filter;
     BatchSums batch_sums(settings.batches, window.size());
     std::size_t next_batch = batch_sums.next_start();
     Vector9* batch_score = nullptr;
     for (std::size_t k = 0; k < window.size(); ++k) {
       if (k > 0) sim.advance(window[k - 1], window[k], settings.input_delay);
-      double p_pred = 0.0;
-      if (landing && k > 0) {
-        p_pred = p_post * std::exp(-2.0 * ref_theta[4] * (window[k].t - window[k - 1].t)) +
-                 landing_variance(window[k - 1], window[k], ref_theta, settings);
-      }
       if (timing && k > 0) {
+        const ModelState ref_before = ref;
         advance_interval(ref_theta, window[k - 1], window[k], settings.input_delay, ref, ref_cache,
                          &ref_u);
+        if (landing) {
+          const double du =
+              window[k].voltage * window[k].voltage - window[k - 1].voltage * window[k - 1].voltage;
+          filter.predict(ref_theta, ref_before, ref, window[k].t - window[k - 1].t,
+                         since_landing(window[k - 1], window[k], settings.input_delay),
+                         ref_theta[5] * du, settings.timing_variance);
+        }
       }
       if (give_up(k, sim.substeps_taken(), sim.state())) {
         stopped = true;
@@ -262,65 +261,71 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
         if (wt > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jt, wt);
         score = wx * rx * jx + wt * rt * jt;
       } else {
-        // W = Σ⁻¹ − c·a aᵀ with a = Σ⁻¹g, c = s/(1 + s·q) (Sherman–Morrison); with the landings'
-        // jitter, T̄'s variance in Σ is the innovation's, σT̄² + P.
+        // The residual's covariance C = Σ + P + s·g gᵀ: the sensors' Σ = diag(σx², σT̄²), the
+        // landing filter's prediction covariance P of (x, T̄) (0 without the landings' jitter) and
+        // the stamp's s·g gᵀ; the sample counts with W = C⁻¹ over the channels the fit weights.
         const double s = settings.timing_variance;
-        const double gx = ref.xdot;
-        const double gt = -ref_theta[4] * ref.tbar + ref_theta[5] * ref_u;
-        const double wt_k = landing ? 1.0 / (1.0 / wt + p_pred) : wt;
-        const double ax = wx * gx, at = wt_k * gt;
-        const double q = ax * gx + at * gt;
-        const double c = s / (1.0 + s * q);
-        const double w_xx = wx - c * ax * ax, w_tt = wt_k - c * at * at, w_xt = -c * ax * at;
+        const Eigen::Vector2d g(ref.xdot, -ref_theta[4] * ref.tbar + ref_theta[5] * ref_u);
+        const Eigen::Matrix2d pred =
+            landing ? filter.output_covariance() : Eigen::Matrix2d::Zero().eval();
+        Eigen::Matrix2d c = pred + s * g * g.transpose();
+        if (wx > 0.0) c(0, 0) += 1.0 / wx;
+        if (wt > 0.0) c(1, 1) += 1.0 / wt;
+        Eigen::Matrix2d w = Eigen::Matrix2d::Zero();
+        if (wx > 0.0 && wt > 0.0) {
+          const double det = c(0, 0) * c(1, 1) - c(0, 1) * c(1, 0);  // > 0: Σ is definite
+          w << c(1, 1) / det, -c(0, 1) / det, -c(1, 0) / det, c(0, 0) / det;
+        } else if (wx > 0.0) {
+          w(0, 0) = 1.0 / c(0, 0);
+        } else if (wt > 0.0) {
+          w(1, 1) = 1.0 / c(1, 1);
+        }
+        const double w_xx = w(0, 0), w_xt = w(0, 1), w_tt = w(1, 1);
         const double omega = outlier_weight(settings.outlier_threshold, window[k].x - ref.x,
                                             window[k].tbar - ref.tbar, w_xx, w_xt, w_tt);
         if (omega < 1.0) ++r.outliers;
         omega_k = omega;
-        gt_k = gt;
-        const double u = ax * rx + at * rt;
-        const Vector9 ja = ax * jx + at * jt;
-        if (wx > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, omega * wx);
-        if (wt > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jt, omega * wt_k);
-        r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(ja, -omega * c);
-        score = omega * (wx * rx * jx + wt_k * rt * jt - c * u * ja);
+        gt_k = g[1];
+        if (w_xx != 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, omega * w_xx);
+        if (w_tt != 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jt, omega * w_tt);
+        if (w_xt != 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, jt, omega * w_xt);
+        const Eigen::Vector2d e = w * Eigen::Vector2d(rx, rt);  // W r
+        score = omega * (e[0] * jx + e[1] * jt);
         // ResidualSums counted wx·rx² + wt·rt²: the sample's cost is ω·rᵀWr.
-        r.cost +=
-            omega * (wx * rx * rx + wt_k * rt * rt - c * u * u) - (wx * rx * rx + wt * rt * rt);
-        // D_x = e₁e₁ᵀ, D_T = e₂e₂ᵀ, D_s = g gᵀ (+ π·e₂e₂ᵀ with the landings' jitter, below).
-        const double ex = w_xx * rx + w_xt * rt, et = w_xt * rx + w_tt * rt;    // W r
-        const double wgx = w_xx * gx + w_xt * gt, wgt = w_xt * gx + w_tt * gt;  // W g
-        const double gwg = gx * wgx + gt * wgt, ge = gx * ex + gt * et;
-        // With the landings' jitter T̄'s innovation variance has P ∝ s in it too: D_s gains
-        // π·e₂e₂ᵀ, π = P/s.
-        const double pi = landing && s > 0.0 ? p_pred / s : 0.0;
+        r.cost += omega * (rx * e[0] + rt * e[1]) - (wx * rx * rx + wt * rt * rt);
+        // Fisher scoring on v = (σx², σT̄², s): D_x = e₁e₁ᵀ, D_T = e₂e₂ᵀ, D_s = g gᵀ + P/s (the
+        // landing filter's P is proportional to s: its only source is the landings' jitter).
+        const Eigen::Matrix2d d_s =
+            g * g.transpose() + (s > 0.0 ? (pred / s).eval() : Eigen::Matrix2d::Zero().eval());
+        const Eigen::Matrix2d wdw = w * d_s * w;
         // The variances' score with the quadratic terms weighted ω²/κ (Huber's proposal 2): a
         // down-weighted sample adds at most threshold² however far its stamp was displaced
         // (with ω·m², 0.3 % of stamps 1-3 ms off read as 50 µs of jitter instead of 41), and
         // κ = E[min(m², a²)]/2 = 1 − e^{−a²/2} for a Gaussian two-channel residual keeps the
         // estimate unbiased on clean data (the descending part changes κ by 1e-8).
         const double q2 = omega * omega / outlier_consistency(settings.outlier_threshold);
-        r.variance_score += 0.5 * Eigen::Vector3d(q2 * ex * ex - w_xx, q2 * et * et - w_tt,
-                                                  q2 * (ge * ge + pi * et * et) - gwg - pi * w_tt);
-        const double i_xs = wgx * wgx + pi * w_xt * w_xt, i_ts = wgt * wgt + pi * w_tt * w_tt;
-        const double i_ss = gwg * gwg + 2.0 * pi * wgt * wgt + pi * pi * w_tt * w_tt;
+        r.variance_score += 0.5 * Eigen::Vector3d(q2 * e[0] * e[0] - w_xx, q2 * e[1] * e[1] - w_tt,
+                                                  q2 * e.dot(d_s * e) - (w * d_s).trace());
         Eigen::Matrix3d info;
-        info << w_xx * w_xx, w_xt * w_xt, i_xs,  //
-            w_xt * w_xt, w_tt * w_tt, i_ts,      //
-            i_xs, i_ts, i_ss;
+        info << w_xx * w_xx, w_xt * w_xt, wdw(0, 0),  //
+            w_xt * w_xt, w_tt * w_tt, wdw(1, 1),      //
+            wdw(0, 0), wdw(1, 1), (wdw * d_s).trace();
         r.variance_information += 0.5 * info;
-        r.speed_squares[0] += gx * gx;
-        r.speed_squares[1] += gt * gt;
+        r.speed_squares[0] += g[0] * g[0];
+        r.speed_squares[1] += g[1] * g[1];
       }
       if (landing) {
         // The update, after this sample's sensitivities were used: a down-weighted sample
-        // (a displaced stamp) corrects T̄ as much less as it counts.
-        const double gain =
-            omega_k * p_pred / (1.0 / wt + p_pred + settings.timing_variance * gt_k * gt_k);
-        sim.correct_tbar(gain, rt);
+        // (a displaced stamp) corrects the state as much less as it counts.
+        const Eigen::Vector3d gain =
+            filter.update_with_tbar(1.0 / wt + settings.timing_variance * gt_k * gt_k, omega_k);
+        sim.correct_with_tbar(gain, rt);
         // The reference trajectory is filtered alike, so that its residuals, which set the
         // robust weights, are innovations too.
-        ref.tbar += gain * (window[k].tbar - ref.tbar);
-        p_post = (1.0 - gain) * p_pred;
+        const double ref_innovation = window[k].tbar - ref.tbar;
+        ref.x += gain[0] * ref_innovation;
+        ref.xdot += gain[1] * ref_innovation;
+        ref.tbar += gain[2] * ref_innovation;
       }
       r.jtwr += score;
       if (hac) hac->add(score);

@@ -54,9 +54,11 @@ struct PassSettings {
   // error of the same variance as the samples' (timing_variance: both are stamps of one link's
   // transactions). A landing δ off puts θ6·ΔV²·δ into T̄ that the model does not have, and it
   // reaches x through T̄ for seconds: process noise on the thermal state. The pass then runs a
-  // Kalman filter on T̄ (scalar: P ← e^{−2θ5h}P + q, q = (θ6·ΔV²·e^{−θ5(t − since)})²·s, gain
-  // K = P/(P + σT̄² + s·ġT̄²)), corrects the simulated T̄ with each sample's innovation and
-  // weights that innovation by its variance: a prediction-error fit on T̄, output-error on x.
+  // Kalman filter on [x, ẋ, T̄] (refine/landing_filter.hpp; P propagated along the reference
+  // trajectory, each landing adding s·v vᵀ, v its effect carried to the sample), corrects the
+  // simulated state with T̄'s innovation (gains P e₃/(P_T̄T̄ + σT̄² + s·ġT̄²)) and weights each
+  // sample's residuals by their covariance Σ + P + s·g gᵀ: prediction error on T̄, and on x
+  // through T̄'s innovations only.
   bool landing_jitter = false;
 };
 

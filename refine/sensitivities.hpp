@@ -30,12 +30,17 @@ class SensitivitySimulator {
   // ∂x/∂p and ∂T̄/∂p at the current sample.
   const Vector9& dx() const noexcept { return dx_; }
   const Vector9& dtbar() const noexcept { return dtbar_; }
-  // A measurement update of T̄ with gain K on the innovation e = T̄ measured − T̄ (a Kalman
-  // filter's on the thermal state, refine/residual_pass.hpp): T̄ += K·e. With K held fixed,
-  // ∂T̄/∂p ← (1 − K)·∂T̄/∂p, since the measurement does not depend on p.
-  void correct_tbar(double gain, double innovation) noexcept {
-    state_.tbar += gain * innovation;
-    dtbar_ *= 1.0 - gain;
+  // A measurement update with gains K = [Kx, Kẋ, KT̄] on T̄'s innovation e = T̄ measured − T̄ (the
+  // Kalman filter of refine/landing_filter.hpp): state += K·e. With K held fixed, since the
+  // measurement does not depend on p: ∂x/∂p −= Kx·∂T̄/∂p, ∂ẋ/∂p −= Kẋ·∂T̄/∂p,
+  // ∂T̄/∂p ← (1 − KT̄)·∂T̄/∂p.
+  void correct_with_tbar(const Eigen::Vector3d& gain, double innovation) noexcept {
+    state_.x += gain[0] * innovation;
+    state_.xdot += gain[1] * innovation;
+    state_.tbar += gain[2] * innovation;
+    dx_ -= gain[0] * dtbar_;
+    dxdot_ -= gain[1] * dtbar_;
+    dtbar_ *= 1.0 - gain[2];
   }
   // Mechanical sub-steps taken so far (refine/model_simulator.hpp, substeps()).
   long substeps_taken() const noexcept { return substeps_; }
