@@ -96,7 +96,7 @@ BatchMeansCheck check_against_batch_means(Matrix9& covariance, const Matrix9& no
   if (!inverse_on_free(normal, free, inverse)) return out;
   Matrix9 outer = Matrix9::Zero();
   for (const Vector9& g : batch_scores) outer.noalias() += g * g.transpose();
-  out.covariance = inverse * outer * inverse;
+  const Matrix9 batch_means = inverse * outer * inverse;  // uncorrected
   // Per coordinate i, with a = N⁻¹e_i: y_b = aᵀĝ_b, ĝ_b = g_b − H_b N⁻¹ Σ_c g_c the score at θ̂.
   // Under white residuals (Cov g_b = H_b, independent) Cov(y_b, y_c) = δ_bc·aᵀH_b a −
   // u_bᵀN⁻¹u_c, u_b = H_b a: M. Σ y_b² = the batch-means variance has mean tr M and variance
@@ -116,7 +116,7 @@ BatchMeansCheck check_against_batch_means(Matrix9& covariance, const Matrix9& no
     const double mean = m.trace(), spread = m.squaredNorm();
     if (!(mean > 0.0) || !(spread > 0.0)) continue;
     // Scaled to N⁻¹'s own variance, which Newey–West's estimates.
-    out.ratio[i] = out.covariance(i, i) * inverse(i, i) / (mean * hac);
+    out.ratio[i] = batch_means(i, i) * inverse(i, i) / (mean * hac);
     out.dof[i] = mean * mean / spread;
     if (std::isfinite(out.ratio[i]) && out.ratio[i] > chi_square_99_over_dof(out.dof[i]))
       out.factor[i] = std::sqrt(out.ratio[i]);

@@ -49,10 +49,9 @@ bool sandwich_on_free(const Matrix9& normal, const Matrix9& long_run, const Free
 // its correlations kept. At 99 % one white-noise window in a hundred is scaled for nothing; what
 // the check lets through is a σ at most √(χ²_ν(0.99)/ν) too small (1.4–1.9×).
 struct BatchMeansCheck {
-  Vector9 factor = Vector9::Ones();      // what scaled each σ (1: not significant, or not free)
-  Vector9 ratio = Vector9::Zero();       // corrected batch-means variance / Newey–West's
-  Vector9 dof = Vector9::Zero();         // ν_i
-  Matrix9 covariance = Matrix9::Zero();  // N⁻¹(Σ g_b g_bᵀ)N⁻¹, uncorrected
+  Vector9 factor = Vector9::Ones();  // what scaled each σ (1: not significant, or not free)
+  Vector9 ratio = Vector9::Zero();   // corrected batch-means variance / Newey–West's
+  Vector9 dof = Vector9::Zero();     // ν_i
 };
 
 BatchMeansCheck check_against_batch_means(Matrix9& covariance, const Matrix9& normal,

@@ -18,8 +18,8 @@
 //       re-estimated until it settles; with FitSettings::sample_timing_jitter, each sample weighted
 //       by (Σ + s·g gᵀ)⁻¹ instead and (σ̂x², σ̂T̄², s) re-estimated by Fisher scoring, and with
 //       FitSettings::outlier_threshold, from the second round on, by Hampel's robust weights too;
-//       with FitSettings::landing_timing_jitter, T̄ Kalman-filtered for the landings' timing
-//       error (refine/residual_pass.cpp).
+//       with FitSettings::landing_timing_jitter, x, ẋ and T̄ Kalman-filtered for the landings'
+//       timing error (refine/landing_filter.hpp).
 // Then one pass at the solution gives JᵀWJ and the score's long-run covariance (covariance.hpp):
 // Newey–West's, checked by batch means.
 
