@@ -2,8 +2,9 @@
 // streamed normal equations (refine/levenberg_marquardt.hpp):
 //   (a) thermal: θ5, θ6, T̄0 on T̄ alone (the thermal block does not see x);
 //   (a') with FitSettings::max_input_delay_s, the voltage's delay d: the thermal stage's cost
-//       profiled along d (golden section, then the parabola's vertex) and σ_d from its curvature;
-//       every later pass switches the voltage d later than recorded;
+//       profiled along d (golden section, then the parabola's vertex) and σ_d from its curvature,
+//       checked by batch means (refine/delay_batch_means.hpp); every later pass switches the
+//       voltage d later than recorded;
 //   (b) the common scale s of θ1..θ4: scaling θ1..θ4 together changes only the weight of the
 //       inertia term (the fast pole), the direction the data determine worst and the one along
 //       which a biased start is off (the paper law under noise: θ1..θ4 × ~0.17). A scale search
@@ -30,6 +31,7 @@
 #include <limits>
 
 #include "refine/covariance.hpp"
+#include "refine/delay_batch_means.hpp"
 #include "refine/levenberg_marquardt.hpp"
 #include "refine/residual_pass.hpp"
 
@@ -358,11 +360,40 @@ GoldenResult golden_section(double a, double b, double tolerance, int max_steps,
 
 struct DelayEstimate {
   bool ok = false;
-  double delay = 0.0;  // s
-  double sigma = 0.0;  // s
+  double delay = 0.0;         // s
+  double sigma = 0.0;         // s, after the batch-means check
+  double batch_factor = 1.0;  // what the check scaled σ_d by
   bool at_limit = false;
   Vector9 p = Vector9::Zero();  // the thermal fit at `delay`
 };
+
+// σ_d checked by batch means (refine/delay_batch_means.hpp): three thermal passes at the profile's
+// (θ5, θ6, T̄0), d at d̂ and d̂ ± σ_d (the profile is a parabola that far), weighted by T̄'s
+// residual variance there; d rides in θ1's slot, which the thermal stage leaves fixed.
+void check_delay(std::span<const WindowSample> window, const Coordinates& c, DelayEstimate& out,
+                 double lowest, Budget& budget, const FitSettings& settings) {
+  const double h = out.sigma;
+  if (!(h > 0.0) || out.delay - h < lowest) return;
+  FreeMask free{};
+  for (const int i : c.index) free[static_cast<std::size_t>(i)] = true;
+  PassSettings ps = thermal_pass();
+  ps.batches = settings.covariance_batches;
+  budget.set_input_delay(out.delay);
+  const PassResult at = budget.pass(window, out.p, ps);
+  if (!at.finite) return;
+  ps.weight[1] = 1.0 / std::max(at.rss[1] / dof(window.size(), c.index.size() + 1), 1e-300);
+  const PassResult weighted = budget.pass(window, out.p, ps);
+  budget.set_input_delay(out.delay - h);
+  const PassResult below = budget.pass(window, out.p, ps);
+  budget.set_input_delay(out.delay + h);
+  const PassResult above = budget.pass(window, out.p, ps);
+  budget.set_input_delay(out.delay);
+  constexpr std::size_t kDelaySlot = 0;
+  const BatchMeansCheck check =
+      check_delay_against_batch_means(below, weighted, above, h, free, kDelaySlot);
+  out.batch_factor = check.factor[kDelaySlot];
+  out.sigma *= out.batch_factor;
+}
 
 // The voltage's delay d from T̄ alone (FitSettings::max_input_delay_s): the profile of the thermal
 // cost, (θ5, θ6, T̄0) refitted at each d, minimized by golden section over [−limit, limit] (it is
@@ -446,6 +477,8 @@ DelayEstimate estimate_input_delay(std::span<const WindowSample> window, const V
     d = out.delay;
   }
   out.at_limit = std::abs(out.delay) > limit * (1.0 - 1e-6);
+  if (out.ok && settings.covariance_batches > 1)
+    check_delay(window, c, out, lowest, budget, settings);
   return out;
 }
 
@@ -542,6 +575,7 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
     result.input_delay_estimated = true;
     result.input_delay_s = de.delay;
     result.input_delay_sigma_s = de.sigma;
+    result.input_delay_batch_factor = de.batch_factor;
     delay_at_limit = de.at_limit;
   }
   // A start whose damping θ1 + θ2·T̄ turns negative somewhere in the thermal fit's T̄ range

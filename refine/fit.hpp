@@ -129,6 +129,9 @@ struct FitResult {
   bool input_delay_estimated = false;
   double input_delay_s = 0.0;
   double input_delay_sigma_s = 0.0;
+  // What the batch-means check on d (refine/delay_batch_means.hpp) scaled its σ by; 1 when the
+  // batches did not differ beyond chance.
+  double input_delay_batch_factor = 1.0;
   // FitSettings::sample_timing_jitter: the estimated RMS error of the samples' instants (s).
   double sample_timing_sigma_s = 0.0;
   // FitSettings::outlier_threshold: the samples the final pass down-weighted. The covariance is

@@ -50,9 +50,10 @@ class LongRunAccumulator {
   long windows_ = 0;
 };
 
-// PassSettings::batches: the score and the information summed over K contiguous batches of
-// (nearly) equal sample count, for PassResult::batch_scores and batch_information. The
-// information is jtwj's growth over the batch (jtwj is accumulated in its upper triangle). The
+// PassSettings::batches: the score, the information and the cost summed over K contiguous
+// batches of (nearly) equal sample count, for PassResult::batch_scores, batch_information and
+// batch_costs. The information and the cost are jtwj's and cost's growth over the batch (jtwj is
+// accumulated in its upper triangle). The
 // pass's loop touches it only at a batch's first sample and through the pointer begin_batch()
 // returns, so that a pass without batches runs as fast as before it existed.
 class BatchSums {
@@ -64,18 +65,20 @@ class BatchSums {
         samples_(samples),
         next_start_(batches_ > 0 ? 0 : std::numeric_limits<std::size_t>::max()),
         scores_(batches_, Vector9::Zero()),
-        information_(batches_, Matrix9::Zero()) {}
+        information_(batches_, Matrix9::Zero()),
+        costs_(batches_, 0.0) {}
 
   // The first sample of the next batch (never, without batches).
   std::size_t next_start() const { return next_start_; }
 
-  // At sample k = next_start(), before its contributions to `jtwj`: closes the batch before and
-  // returns where this one's score is summed.
-  Vector9* begin_batch(std::size_t k, const Matrix9& jtwj) {
-    finish(jtwj);
+  // At sample k = next_start(), before its contributions to `jtwj` and `cost` (the cost so far
+  // without sample k's): closes the batch before and returns where this one's score is summed.
+  Vector9* begin_batch(std::size_t k, const Matrix9& jtwj, double cost) {
+    finish(jtwj, cost);
     current_ = k * batches_ / samples_;
     open_ = true;
     jtwj_at_start_ = jtwj;
+    cost_at_start_ = cost;
     const std::size_t b = current_ + 1;  // the first k with k·K/N ≥ b
     next_start_ = b >= batches_ ? std::numeric_limits<std::size_t>::max()
                                 : (b * samples_ + batches_ - 1) / batches_;
@@ -83,16 +86,18 @@ class BatchSums {
   }
 
   // After the last sample: closes the open batch.
-  void finish(const Matrix9& jtwj) {
+  void finish(const Matrix9& jtwj, double cost) {
     if (!open_) return;
     const Matrix9 h = jtwj - jtwj_at_start_;
     information_[current_] = h.selfadjointView<Eigen::Upper>();
+    costs_[current_] = cost - cost_at_start_;
     open_ = false;
   }
 
   void move_into(PassResult& r) {
     r.batch_scores = std::move(scores_);
     r.batch_information = std::move(information_);
+    r.batch_costs = std::move(costs_);
   }
 
  private:
@@ -101,9 +106,11 @@ class BatchSums {
   std::size_t next_start_;
   std::vector<Vector9> scores_;
   std::vector<Matrix9> information_;
+  std::vector<double> costs_;
   std::size_t current_ = 0;
   bool open_ = false;
   Matrix9 jtwj_at_start_ = Matrix9::Zero();
+  double cost_at_start_ = 0.0;
 };
 
 // Hampel's three-part weight of a sample whose residual r (at the reference trajectory) has the
@@ -249,7 +256,8 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
       }
       sums.add(k, window[k], sim.state(), rx, rt);
       if (k == next_batch) [[unlikely]] {
-        batch_score = batch_sums.begin_batch(k, r.jtwj);
+        // sums.add has counted sample k's wx·rx² + wt·rt² already.
+        batch_score = batch_sums.begin_batch(k, r.jtwj, r.cost - (wx * rx * rx + wt * rt * rt));
         next_batch = batch_sums.next_start();
       }
       const Vector9& jx = sim.dx();
@@ -331,7 +339,7 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
       if (hac) hac->add(score);
       if (batch_score != nullptr) *batch_score += score;
     }
-    batch_sums.finish(r.jtwj);
+    batch_sums.finish(r.jtwj, r.cost);
     batch_sums.move_into(r);
     r.jtwj = r.jtwj.selfadjointView<Eigen::Upper>();
     if (hac) r.long_run = hac->result();

@@ -74,9 +74,11 @@ struct PassResult {
   std::array<double, 2> lag1{};        // Σ r_k·r_{k−1} per channel: the residuals' colour
   Matrix9 long_run = Matrix9::Zero();  // Σ_{|l|<B} (1 − |l|/B)·Σ_k s_k s_{k+l}ᵀ, s_k = J_kᵀW r_k
   // With PassSettings::batches = K: per batch b, the score g_b = Σ_{k∈b} s_k and the information
-  // H_b = Σ_{k∈b} J_kᵀW J_k (its share of jtwj); empty otherwise.
+  // H_b = Σ_{k∈b} J_kᵀW J_k (its share of jtwj) and the cost (its share of `cost`); empty
+  // otherwise.
   std::vector<Vector9> batch_scores;
   std::vector<Matrix9> batch_information;
+  std::vector<double> batch_costs;
   double tbar_min = 0.0, tbar_max = 0.0;  // range of the model's T̄ (damping positivity check)
   std::size_t samples = 0;
   long substeps = 0;       // model sub-steps simulated (the pass's cost)

@@ -53,6 +53,7 @@ struct RefinedView {
   bool input_delay_estimated = false;
   double input_delay_s = 0.0;
   double input_delay_sigma_s = 0.0;
+  double input_delay_sigma_inflation = 1.0;  // the batch-means check's factor on it
   double sample_timing_sigma_s = 0.0;
   std::uint64_t outliers = 0;  // samples the fit down-weighted (refine::FitResult::outliers)
   bool converged = false;

@@ -203,6 +203,7 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   v.input_delay_estimated = r.input_delay_estimated;
   v.input_delay_s = r.input_delay_s;
   v.input_delay_sigma_s = r.input_delay_sigma_s;
+  v.input_delay_sigma_inflation = r.input_delay_batch_factor;
   v.sample_timing_sigma_s = r.sample_timing_sigma_s;
   v.outliers = r.outliers;
   // A result with a non-finite θ̂ is no result, whatever the solver said.

@@ -114,6 +114,7 @@ void put_refinement(json& out, const EstimateView& estimate, const refine::Refin
     json timing = json::object();
     put_finite(timing, "input_delay_s", r.input_delay_s);
     put_finite(timing, "input_delay_sigma_s", r.input_delay_sigma_s);
+    put_finite(timing, "input_delay_sigma_inflation", r.input_delay_sigma_inflation);
     put_finite(timing, "sample_jitter_s", r.sample_timing_sigma_s);
     timing["outliers"] = r.outliers;
     o["link_timing"] = timing;

@@ -259,13 +259,14 @@ TEST(E2eLinkTiming, StampedTransactionsIdentifyFarBetterThanDeadlines) {
     std::printf(
         "[measured] %-9s: refined (converged %s: %s, window %.0f s) rel. error theta1..4 "
         "(worst) %.2e (sigma %.2e), theta5 %.2e (%.1f sigma), theta6 %.2e (%.1f sigma); x "
-        "residual RMS %.2e m; voltage delay %.1f us (sigma %.2f us), sample jitter %.1f us, "
+        "residual RMS %.2e m; voltage delay %.1f us (sigma %.2f us, x%.2f), sample jitter %.1f us, "
         "%d samples down-weighted; sigma scaled by batch means x%.2f (theta1), x%.2f (theta5)\n",
         names[b], r.value("converged", false) ? "yes" : "no",
         r.value("message", std::string()).c_str(),
         r["window"].value("t_end", 0.0) - r["window"].value("t_begin", 0.0), max_rel(r, 0, 4),
         sigma_mech, max_rel(r, 4, 1), z[0], max_rel(r, 5, 1), z[1], x_rms,
         timing.value("input_delay_s", 0.0) * 1e6, timing.value("input_delay_sigma_s", 0.0) * 1e6,
+        timing.value("input_delay_sigma_inflation", -1.0),
         timing.value("sample_jitter_s", 0.0) * 1e6, timing.value("outliers", -1), inflation_of(0),
         inflation_of(4));
     if (r.value("converged", false)) {

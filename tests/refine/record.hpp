@@ -149,21 +149,39 @@ inline std::vector<WindowSample> link_record(const drivers::sim::PlantParams& pa
   return w;
 }
 
+// What a link's landing stamps get wrong beyond their per-stamp jitter: a constant delay (the
+// voltage switches `delay` s after its stamp) and a slow wander about it, a new offset drawn
+// uniformly from [−wander, wander] every `wander_block_s` (a live link's landing stamps' 10 s
+// means wander by ±10 µs: docs/numerics.md, "σ on a real link").
+struct LandingStampErrors {
+  double delay = 0.0;
+  double wander = 0.0;
+  double wander_block_s = 10.0;
+};
+
 // The same link with its stamps' error: each sample's stamp and each landing's stamp off by an
 // independent Gaussian error of `jitter` (s) RMS, as transaction midpoints on a link are (the
-// plant saw the true instants).
+// plant saw the true instants), and the landing stamps' `errors` besides.
 inline std::vector<WindowSample> jittered_link_record(const drivers::sim::PlantParams& params,
-                                                      double seconds, double jitter,
-                                                      unsigned seed) {
+                                                      double seconds, double jitter, unsigned seed,
+                                                      const LandingStampErrors& errors = {}) {
   drivers::sim::Plant plant(params);
   excitation::Excitation ex(excitation::paper_excitation());
   std::mt19937_64 rng(seed);
+  std::mt19937_64 wander_rng(seed + 0x9e3779b9u);  // its own: the jitter's draws stay as they were
   std::uniform_real_distribution<double> period_jitter(-2e-3, 2e-3);
+  std::uniform_real_distribution<double> wander(-errors.wander, errors.wander);
   std::normal_distribution<double> stamp_error(0.0, jitter);
   std::vector<WindowSample> w;
   double t = 0.0, v_cur = 0.0;
+  double offset = errors.wander > 0.0 ? wander(wander_rng) : 0.0;
+  double next_offset_at = errors.wander_block_s;
   w.push_back({0.0, 0.0, 0.0, 0.0, -1e300});
   while (t < seconds) {
+    if (errors.wander > 0.0 && t >= next_offset_at) {
+      offset = wander(wander_rng);
+      next_offset_at += errors.wander_block_s;
+    }
     const double next = t + 10e-3 + period_jitter(rng);
     const double lands = t + 3.6e-3 + stamp_error(rng);
     const double v_prev = v_cur;
@@ -171,7 +189,9 @@ inline std::vector<WindowSample> jittered_link_record(const drivers::sim::PlantP
     plant.step(v_prev, lands - t);
     plant.step(v_cur, next - lands);
     t = next;
-    w.push_back({t + stamp_error(rng), plant.x(), plant.tbar(), v_cur, lands + stamp_error(rng)});
+    const double sample_stamp = t + stamp_error(rng);
+    const double landing_stamp = lands - errors.delay + offset + stamp_error(rng);
+    w.push_back({sample_stamp, plant.x(), plant.tbar(), v_cur, landing_stamp});
   }
   return w;
 }
