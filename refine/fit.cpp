@@ -367,9 +367,9 @@ struct DelayEstimate {
   Vector9 p = Vector9::Zero();  // the thermal fit at `delay`
 };
 
-// σ_d checked by batch means (refine/delay_batch_means.hpp): three thermal passes at the profile's
-// (θ5, θ6, T̄0), d at d̂ and d̂ ± σ_d (the profile is a parabola that far), weighted by T̄'s
-// residual variance there; d rides in θ1's slot, which the thermal stage leaves fixed.
+// σ_d checked by batch means (refine/delay_batch_means.hpp): at the profile's (θ5, θ6, T̄0), one
+// thermal pass for T̄'s residual variance, then three weighted by it with d at d̂ and d̂ ± σ_d (the
+// profile is a parabola that far); d rides in θ1's slot, which the thermal stage leaves fixed.
 void check_delay(std::span<const WindowSample> window, const Coordinates& c, DelayEstimate& out,
                  double lowest, Budget& budget, const FitSettings& settings) {
   const double h = out.sigma;

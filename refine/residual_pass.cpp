@@ -53,9 +53,9 @@ class LongRunAccumulator {
 // PassSettings::batches: the score, the information and the cost summed over K contiguous
 // batches of (nearly) equal sample count, for PassResult::batch_scores, batch_information and
 // batch_costs. The information and the cost are jtwj's and cost's growth over the batch (jtwj is
-// accumulated in its upper triangle). The
-// pass's loop touches it only at a batch's first sample and through the pointer begin_batch()
-// returns, so that a pass without batches runs as fast as before it existed.
+// accumulated in its upper triangle). The pass's loop touches it only at a batch's first sample
+// and through the pointer begin_batch() returns, so that a pass without batches runs as fast as
+// before it existed.
 class BatchSums {
  public:
   BatchSums(int batches, std::size_t samples)
