@@ -367,21 +367,19 @@ struct DelayEstimate {
   Vector9 p = Vector9::Zero();  // the thermal fit at `delay`
 };
 
-// σ_d checked by batch means (refine/delay_batch_means.hpp): at the profile's (θ5, θ6, T̄0), one
-// thermal pass for T̄'s residual variance, then three weighted by it with d at d̂ and d̂ ± σ_d (the
+// σ_d checked by batch means (refine/delay_batch_means.hpp): three thermal passes at the profile's
+// (θ5, θ6, T̄0), weighted by T̄'s residual variance `var_t` there, with d at d̂ and d̂ ± σ_d (the
 // profile is a parabola that far); d rides in θ1's slot, which the thermal stage leaves fixed.
 void check_delay(std::span<const WindowSample> window, const Coordinates& c, DelayEstimate& out,
-                 double lowest, Budget& budget, const FitSettings& settings) {
+                 double lowest, double var_t, Budget& budget, const FitSettings& settings) {
   const double h = out.sigma;
-  if (!(h > 0.0) || out.delay - h < lowest) return;
+  if (!(h > 0.0) || !(var_t > 0.0) || out.delay - h < lowest) return;
   FreeMask free{};
   for (const int i : c.index) free[static_cast<std::size_t>(i)] = true;
   PassSettings ps = thermal_pass();
   ps.batches = settings.covariance_batches;
+  ps.weight[1] = 1.0 / var_t;
   budget.set_input_delay(out.delay);
-  const PassResult at = budget.pass(window, out.p, ps);
-  if (!at.finite) return;
-  ps.weight[1] = 1.0 / std::max(at.rss[1] / dof(window.size(), c.index.size() + 1), 1e-300);
   const PassResult weighted = budget.pass(window, out.p, ps);
   budget.set_input_delay(out.delay - h);
   const PassResult below = budget.pass(window, out.p, ps);
@@ -477,8 +475,11 @@ DelayEstimate estimate_input_delay(std::span<const WindowSample> window, const V
     d = out.delay;
   }
   out.at_limit = std::abs(out.delay) > limit * (1.0 - 1e-6);
-  if (out.ok && settings.covariance_batches > 1)
-    check_delay(window, c, out, lowest, budget, settings);
+  if (out.ok && settings.covariance_batches > 1) {
+    // best_cost is the weight-1 cost at (d̂, out.p): T̄'s residual variance, as σ_d's own.
+    const double var_t = best_cost / dof(window.size(), c.index.size() + 1);
+    check_delay(window, c, out, lowest, var_t, budget, settings);
+  }
   return out;
 }
 

@@ -25,6 +25,14 @@
 
 namespace scp::refine {
 
+// The filter's measurement update applied to a state: [x, ẋ, T̄] += K·e, e T̄'s innovation.
+inline void correct_with_tbar(ModelState& s, const Eigen::Vector3d& gain,
+                              double innovation) noexcept {
+  s.x += gain[0] * innovation;
+  s.xdot += gain[1] * innovation;
+  s.tbar += gain[2] * innovation;
+}
+
 class LandingFilter {
  public:
   // Propagates the error covariance over an interval of length h, linearized at the mean of the

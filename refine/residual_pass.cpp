@@ -330,10 +330,7 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
         sim.correct_with_tbar(gain, rt);
         // The reference trajectory is filtered alike, so that its residuals, which set the
         // robust weights, are innovations too.
-        const double ref_innovation = window[k].tbar - ref.tbar;
-        ref.x += gain[0] * ref_innovation;
-        ref.xdot += gain[1] * ref_innovation;
-        ref.tbar += gain[2] * ref_innovation;
+        correct_with_tbar(ref, gain, window[k].tbar - ref.tbar);
       }
       r.jtwr += score;
       if (hac) hac->add(score);

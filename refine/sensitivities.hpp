@@ -11,6 +11,7 @@
 // The outputs are x and T̄. ẋ is simulated (it is part of the state) but not fitted: PAPER-NOTES
 // measured that a velocity sensor adds < 0.1 % information on θ, and most benches lack one.
 
+#include "refine/landing_filter.hpp"
 #include "refine/model_simulator.hpp"
 
 namespace scp::refine {
@@ -35,9 +36,7 @@ class SensitivitySimulator {
   // measurement does not depend on p: ∂x/∂p −= Kx·∂T̄/∂p, ∂ẋ/∂p −= Kẋ·∂T̄/∂p,
   // ∂T̄/∂p ← (1 − KT̄)·∂T̄/∂p.
   void correct_with_tbar(const Eigen::Vector3d& gain, double innovation) noexcept {
-    state_.x += gain[0] * innovation;
-    state_.xdot += gain[1] * innovation;
-    state_.tbar += gain[2] * innovation;
+    refine::correct_with_tbar(state_, gain, innovation);
     dx_ -= gain[0] * dtbar_;
     dxdot_ -= gain[1] * dtbar_;
     dtbar_ *= 1.0 - gain[2];
