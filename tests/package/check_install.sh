@@ -27,6 +27,10 @@ grep -qx 'ExecStart=/usr/sbin/scp-estimatord --config /etc/scp-estimator/scp-est
   "$root/lib/systemd/system/scp-estimatord.service" ||
   fail "unit's ExecStart= does not name /usr/sbin and /etc: $(grep ExecStart "$root/lib/systemd/system/scp-estimatord.service")"
 find "$root" -name __pycache__ | grep -q . && fail "__pycache__ installed"
+doc=$root/usr/share/doc/scp-estimator
+[[ -e $doc/index.md && -e $doc/operations.md ]] || fail "the documents' index or operations.md not installed"
+head -n 1 "$doc/README.md" | grep -qx '# scp-estimator' ||
+  fail "/usr/share/doc/scp-estimator/README.md is not the top-level README: $(head -n 1 "$doc/README.md")"
 
 echo "# edited by the operator" >>"$config"
 install
