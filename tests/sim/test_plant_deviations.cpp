@@ -216,7 +216,7 @@ TEST(PlantDeviations, AmbientDriftAndLagClosedForm) {
 // T̄(t) = (q/(R·Cth·a))·(t − (1 − e^{−at})/a), a = λ/Cth.
 TEST(PlantDeviations, ContinuousVoltageFollowsClosedForm) {
   Plant plant;
-  const double q = 0.02;  // V²/s: 9 V² after 450 s... 3 V at the end of 450 s
+  const double q = 0.02;  // V²/s: 3 V after 450 s
   const auto v = [q](double t) noexcept { return std::sqrt(q * std::max(0.0, t)); };
   const double a = kTable.lambda / kTable.Cth, gain = q / (kTable.R * kTable.Cth * a);
   double max_err = 0.0;

@@ -66,7 +66,7 @@ TEST(SimSensors, TemperatureIsAbsoluteThroughTheLag) {
   const Sample sb = run(b, 3.0, 2.0);
   // Absolute: the configured ambient + the true ambient's offset + T̄.
   EXPECT_NEAR(sa.temperature, 21.0 + a.plant().tbar(), 1e-12);
-  // A first-order lag trails a ramp by τ·slope (here 0.3 s · 11 °C/s; the ramp's curvature and
+  // A first-order lag trails a ramp by τ·slope (here 0.3 s · about 9 °C/s; the ramp's curvature and
   // the start transient e^{−2/0.3} add well under 2 % of that).
   const PlantParams& p = prompt.plant;
   const double slope = (9.0 / p.R - p.lambda * a.plant().tbar()) / p.Cth;
