@@ -66,11 +66,13 @@ TEST(SimSensors, TemperatureIsAbsoluteThroughTheLag) {
   const Sample sb = run(b, 3.0, 2.0);
   // Absolute: the configured ambient + the true ambient's offset + T̄.
   EXPECT_NEAR(sa.temperature, 21.0 + a.plant().tbar(), 1e-12);
-  // A first-order lag trails a ramp by τ·slope (here 0.3 s · about 9 °C/s; the ramp's curvature and
-  // the start transient e^{−2/0.3} add well under 2 % of that).
+  // Heating from rest at constant power, T̄ = T̄ss(1 − e^{−at}), a = λ/Cth; a first-order lag τ from
+  // equilibrium trails it by T̄ss·aτ/(1 − aτ)·(e^{−at} − e^{−t/τ}) (about τ·dT̄/dt).
   const PlantParams& p = prompt.plant;
-  const double slope = (9.0 / p.R - p.lambda * a.plant().tbar()) / p.Cth;
-  EXPECT_NEAR(sa.temperature - sb.temperature, 0.3 * slope, 0.02 * 0.3 * slope);
+  const double rate = p.lambda / p.Cth, tau = 0.3, t = 2.0, tss = 9.0 / (p.R * p.lambda);
+  const double trail =
+      tss * rate * tau / (1.0 - rate * tau) * (std::exp(-rate * t) - std::exp(-t / tau));
+  EXPECT_NEAR(sa.temperature - sb.temperature, trail, 1e-9 * trail);
 }
 
 TEST(SimSensors, CurrentFollowsTheHotResistance) {
