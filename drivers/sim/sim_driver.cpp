@@ -32,6 +32,30 @@ void require_non_negative(double v, const std::string& field, const std::string&
   require(std::isfinite(v) && v >= 0.0, field, "a finite number >= 0", v, remedy);
 }
 
+// The deviations of a real bench (issue 28). The bounds keep the model physical and the
+// integration stable: a lag of at least 1 ms against RK4 sub-steps of at most 1 ms.
+void validate_bench(const SimSettings& s) {
+  const PlantDeviations& d = s.deviations;
+  for (const auto& [v, field] : {std::pair{d.resistance_tempco, "sim.tempco.R"},
+                                 std::pair{d.stiffness_softening, "sim.tempco.k_softening"},
+                                 std::pair{d.cooling_tempco, "sim.tempco.lambda"}}) {
+    require(std::isfinite(v) && std::abs(v) <= 0.02, field, "a number in [-0.02, 0.02] per degC", v,
+            "use 0 for the paper's model; a nickel heater's R has 0.0059");
+  }
+  require(std::isfinite(d.ambient_offset_c) && std::abs(d.ambient_offset_c) <= 50.0,
+          "sim.ambient.offset_c", "a number in [-50, 50] degC", d.ambient_offset_c,
+          "the true ambient less actuator.ambient_c; 0 when they agree");
+  require(std::isfinite(d.ambient_drift_c_per_h) && std::abs(d.ambient_drift_c_per_h) <= 100.0,
+          "sim.ambient.drift_c_per_h", "a number in [-100, 100] degC/h", d.ambient_drift_c_per_h,
+          "e.g. 1 for a room warming by 1 degC per hour");
+  const double lag = d.temperature_lag_s;
+  require(lag == 0.0 || (lag >= 1e-3 && lag <= 100.0), "sim.sensor.temperature_lag_s",
+          "0 or a number in [0.001, 100] s", lag, "a fine thermocouple lags by 0.1-0.5 s");
+  require(std::isfinite(s.x_zero) && std::abs(s.x_zero) <= 1.0, "sim.sensor.x_zero_m",
+          "a number in [-1, 1] m", s.x_zero, "what the displacement sensor reads at rest");
+  require_non_negative(s.noise_current, "sim.noise.current", "use 0 for a noise-free sensor");
+}
+
 void validate(const SimSettings& s) {
   const PlantParams& p = s.plant;
   require_positive(p.m, "sim.plant.m", "0.1 kg");
@@ -63,6 +87,7 @@ void validate(const SimSettings& s) {
         std::pair{d.alpha1, "sim.drift.alpha1"}, std::pair{d.alpha2, "sim.drift.alpha2"}}) {
     require(std::isfinite(v), field, "a finite number", v, drift_remedy);
   }
+  validate_bench(s);
   require_non_negative(s.fault_start_s, "sim.fault.start_s", "seconds after the loop starts");
   require_non_negative(s.fault_duration_s, "sim.fault.duration_s", "use 0 for a fault that lasts");
   require(std::isfinite(s.fault_value_c), "sim.fault.value_c", "a finite temperature",
@@ -89,8 +114,8 @@ Fault parse_fault(std::string_view name) {
 SimDriver::SimDriver(const SimSettings& settings)
     : settings_((validate(settings), settings)),
       fault_(parse_fault(settings.fault)),
-      plant_(settings.plant, settings.substeps, settings.drift),
-      rng_(settings.seed) {}
+      plant_(settings.plant, settings.substeps, settings.drift, settings.deviations),
+      sensors_(settings) {}
 
 void SimDriver::open() {
   command_ = 0.0;
@@ -101,11 +126,6 @@ bool SimDriver::fault_active(double t) const noexcept {
   if (fault_ == Fault::none || t < settings_.fault_start_s) return false;
   return settings_.fault_duration_s <= 0.0 ||
          t < settings_.fault_start_s + settings_.fault_duration_s;
-}
-
-double SimDriver::noise(double stddev) noexcept {
-  // Drawn only for noisy channels, so enabling one channel does not change another's sequence.
-  return stddev > 0.0 ? stddev * normal_(rng_) : 0.0;
 }
 
 IoResult SimDriver::read(const CycleTime& now, Sample& out) noexcept {
@@ -129,11 +149,7 @@ IoResult SimDriver::read(const CycleTime& now, Sample& out) noexcept {
   if (faulty && fault_ == Fault::no_data) return {IoStatus::no_data, "simulated: no new data"};
 
   out.t = now.t;
-  out.x = plant_.x() + noise(settings_.noise_x);
-  const double xdot = plant_.xdot() + noise(settings_.noise_xdot);
-  out.xdot = settings_.measure_xdot ? xdot : kNotMeasured;
-  out.temperature = plant_.tbar() + settings_.ambient_c + noise(settings_.noise_temperature);
-  out.voltage = command_ + noise(settings_.noise_voltage);
+  current_ = sensors_.read(plant_, command_, command_, out);
 
   if (faulty && fault_ == Fault::nan_temperature) out.temperature = kNotMeasured;
   if (faulty && fault_ == Fault::temperature_out_of_range) {

@@ -5,11 +5,11 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
-#include <random>
 #include <string_view>
 
 #include "drivers/driver.hpp"
 #include "drivers/sim/plant.hpp"
+#include "drivers/sim/sensors.hpp"
 #include "drivers/sim/sim_settings.hpp"
 
 namespace scp::drivers::sim {
@@ -57,18 +57,20 @@ class SimDriver final : public Driver {
   const Plant& plant() const noexcept { return plant_; }
   const SimSettings& settings() const noexcept { return settings_; }
   double command() const noexcept { return command_; }
+  // The heater current read with the latest sample (A), NaN when settings().measure_current is
+  // false. Not in Sample yet: the driver map has no current channel.
+  double current() const noexcept { return current_; }
 
  private:
   bool fault_active(double t) const noexcept;
-  double noise(double stddev) noexcept;
   void stall() noexcept;
 
   SimSettings settings_;
   Fault fault_;
   Plant plant_;
-  std::mt19937_64 rng_;
-  std::normal_distribution<double> normal_{0.0, 1.0};
-  double command_ = 0.0;       // V held from the last read onward
+  Sensors sensors_;
+  double command_ = 0.0;  // V held from the last read onward
+  double current_ = kNotMeasured;
   bool stalled_ = false;       // stall happens once per window
   bool have_stuck_x_ = false;  // stuck_position: x reported before the fault began
   double stuck_x_ = 0.0;

@@ -11,14 +11,25 @@ namespace scp::drivers::sim {
 
 struct SimSettings {
   PlantParams plant;
-  double ambient_c = 25.0;  // °C; the sensor reports T = T̄ + ambient
-  int substeps = 20;        // RK4 sub-steps per millisecond of simulated time, ≥ 1
+  // °C, the configured ambient (actuator.ambient_c): the temperature sensor reads T, absolute, and
+  // the daemon subtracts this. The true ambient may differ (deviations.ambient_*).
+  double ambient_c = 25.0;
+  int substeps = 20;  // RK4 sub-steps per millisecond of simulated time, ≥ 1
   // Gaussian sensor noise, standard deviation in SI units (m, m/s, °C, V); 0 = none.
   double noise_x = 0, noise_xdot = 0, noise_temperature = 0, noise_voltage = 0;
   std::uint64_t seed = 1;    // of the noise generator; the same seed gives the same samples
   bool measure_xdot = true;  // false: Sample::xdot = NaN (a device without a velocity sensor)
   using Drift = PlantDrift;  // relative drift per hour of each physical parameter
   Drift drift;
+  // How the simulated bench departs from the paper's model, each 0 = off (plant_params.hpp): R, k
+  // and λ changing with T̄, the true ambient's offset and drift, the temperature sensor's lag.
+  PlantDeviations deviations;
+  // The displacement sensor's zero, m: it reads x + x_zero (x = 0 is the rest position at the
+  // true ambient).
+  double x_zero = 0;
+  // A heater-current channel, I = V/R(T̄) (SimDriver::current()), with Gaussian noise in A.
+  bool measure_current = false;
+  double noise_current = 0;
   // Fault injection (for end-to-end tests of the daemon's safety): from fault_start_s for
   // fault_duration_s (0 = forever) the sensor reports this fault.
   // none | nan_temperature | inf_position | stuck_position | stuck_sensor |

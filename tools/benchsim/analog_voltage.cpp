@@ -1,0 +1,54 @@
+#include "tools/benchsim/analog_voltage.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+namespace scp::tools::benchsim {
+
+namespace {
+
+excitation::ExcitationSettings prbs_only(const excitation::ExcitationSettings& s) {
+  excitation::ExcitationSettings bits;
+  bits.prbs = s.prbs;
+  bits.offset = s.prbs.amplitude;
+  bits.v_max = 2.0 * s.prbs.amplitude;
+  return bits;
+}
+
+}  // namespace
+
+AnalogVoltage::AnalogVoltage(const excitation::ExcitationSettings& settings)
+    : settings_((excitation::validate(settings), settings)), bits_(prbs_only(settings)) {}
+
+double AnalogVoltage::at(double t, double level_time) const noexcept {
+  // The same terms in the same order as Excitation::voltage, so at(t, t) is bit for bit its value.
+  double v = settings_.offset;
+  for (const excitation::Sine& w : settings_.sines) {
+    v += w.amplitude * std::sin(2.0 * std::numbers::pi * w.frequency_hz * t + w.phase_rad);
+  }
+  for (const excitation::Step& st : settings_.steps) {
+    if (level_time >= st.time_s) v += st.level_v;
+  }
+  const double amplitude = settings_.prbs.amplitude;
+  if (amplitude > 0.0) v += bits_.voltage(level_time) - amplitude;
+  if (!std::isfinite(v)) return 0.0;
+  return std::clamp(v, 0.0, settings_.v_max);
+}
+
+double AnalogVoltage::next_switch_after(double t) const noexcept {
+  double next = std::numeric_limits<double>::infinity();
+  for (const excitation::Step& st : settings_.steps) {
+    if (st.time_s > t) next = std::min(next, st.time_s);
+  }
+  if (settings_.prbs.amplitude > 0.0) {
+    const double bit = settings_.prbs.bit_period_s;
+    double edge = (std::floor(std::max(0.0, t) / bit) + 1.0) * bit;
+    if (edge <= t) edge += bit;  // t/bit rounded up to a whole number
+    next = std::min(next, edge);
+  }
+  return next;
+}
+
+}  // namespace scp::tools::benchsim
