@@ -360,9 +360,9 @@ GoldenResult golden_section(double a, double b, double tolerance, int max_steps,
 
 struct DelayEstimate {
   bool ok = false;
-  double delay = 0.0;         // s
-  double sigma = 0.0;         // s, after the batch-means check
-  double batch_factor = 1.0;  // what the check scaled σ_d by
+  double delay = 0.0;            // s
+  double sigma = 0.0;            // s, after the batch-means check
+  double sigma_inflation = 1.0;  // what the check scaled σ_d by
   bool at_limit = false;
   Vector9 p = Vector9::Zero();  // the thermal fit at `delay`
 };
@@ -389,8 +389,8 @@ void check_delay(std::span<const WindowSample> window, const Coordinates& c, Del
   constexpr std::size_t kDelaySlot = 0;
   const BatchMeansCheck check =
       check_delay_against_batch_means(below, weighted, above, h, free, kDelaySlot);
-  out.batch_factor = check.factor[kDelaySlot];
-  out.sigma *= out.batch_factor;
+  out.sigma_inflation = check.factor[kDelaySlot];
+  out.sigma *= out.sigma_inflation;
 }
 
 // The voltage's delay d from T̄ alone (FitSettings::max_input_delay_s): the profile of the thermal
@@ -576,7 +576,7 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
     result.input_delay_estimated = true;
     result.input_delay_s = de.delay;
     result.input_delay_sigma_s = de.sigma;
-    result.input_delay_batch_factor = de.batch_factor;
+    result.input_delay_sigma_inflation = de.sigma_inflation;
     delay_at_limit = de.at_limit;
   }
   // A start whose damping θ1 + θ2·T̄ turns negative somewhere in the thermal fit's T̄ range
@@ -772,7 +772,7 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
   if (hac_ok) {
     const BatchMeansCheck check = check_against_batch_means(
         hac, final_pass.jtwj, final_pass.batch_scores, final_pass.batch_information, free);
-    result.batch_inflation = check.factor.head<6>();
+    result.sigma_inflation = check.factor.head<6>();
     result.batch_ratio = check.ratio.head<6>();
     result.batch_dof = check.dof.head<6>();
   }

@@ -53,7 +53,7 @@ struct FitSettings {
   // too optimistic.
   int hac_lags = 0;
   // Batches of the batch-means check on the covariance (refine/covariance.hpp,
-  // FitResult::batch_inflation); < 2 turns it off. 20: 15 s each in a 300 s window, far longer
+  // FitResult::sigma_inflation); < 2 turns it off. 20: 15 s each in a 300 s window, far longer
   // than the mechanical slow pole's 0.7 s, and enough of them for ~11-18 degrees of freedom on
   // the paper's voltage, so that a 99 % test flags a σ 1.4× too small.
   int covariance_batches = 20;
@@ -113,7 +113,7 @@ struct FitResult {
   // tested and its degrees of freedom. Measured on 300 s of
   // a live 10 ms link: factors 2.2-2.6 on θ1..θ4 and 2.8-3.2 on θ5, θ6; on simulated white sensor
   // noise one run in 180 scaled one σ (scripts/montecarlo).
-  Vector6 batch_inflation = Vector6::Ones();
+  Vector6 sigma_inflation = Vector6::Ones();
   Vector6 batch_ratio = Vector6::Zero();  // batch-means variance / Newey–West's, corrected
   Vector6 batch_dof = Vector6::Zero();    // its degrees of freedom
   int hac_lags = 0;  // the Newey–West lags used (FitSettings::hac_lags or the automatic choice)
@@ -131,7 +131,7 @@ struct FitResult {
   double input_delay_sigma_s = 0.0;
   // What the batch-means check on d (refine/delay_batch_means.hpp) scaled its σ by; 1 when the
   // batches did not differ beyond chance.
-  double input_delay_batch_factor = 1.0;
+  double input_delay_sigma_inflation = 1.0;
   // FitSettings::sample_timing_jitter: the estimated RMS error of the samples' instants (s).
   double sample_timing_sigma_s = 0.0;
   // FitSettings::outlier_threshold: the samples the final pass down-weighted. The covariance is
