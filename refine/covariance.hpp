@@ -17,19 +17,17 @@
 #include <cstddef>
 #include <span>
 
-#include "refine/model_simulator.hpp"
+#include "refine/parameters.hpp"
 
 namespace scp::refine {
 
-using FreeMask = std::array<bool, kParams>;
-
 // The inverse of `normal` restricted to the free coordinates (zero rows and columns elsewhere);
 // false when that block is not positive definite.
-bool inverse_on_free(const Matrix9& normal, const FreeMask& free, Matrix9& inverse);
+bool inverse_on_free(const ParamMatrix& normal, const FreeMask& free, ParamMatrix& inverse);
 
 // (N⁻¹) S (N⁻¹) on the free coordinates.
-bool sandwich_on_free(const Matrix9& normal, const Matrix9& long_run, const FreeMask& free,
-                      Matrix9& covariance);
+bool sandwich_on_free(const ParamMatrix& normal, const ParamMatrix& long_run, const FreeMask& free,
+                      ParamMatrix& covariance);
 
 // The batch-means check on `covariance` (Newey–West's) from the score g_b and the information
 // H_b summed over K contiguous batches of the window (PassResult::batch_scores,
@@ -49,14 +47,14 @@ bool sandwich_on_free(const Matrix9& normal, const Matrix9& long_run, const Free
 // its correlations kept. At 99 % one white-noise window in a hundred is scaled for nothing; what
 // the check lets through is a σ at most √(χ²_ν(0.99)/ν) too small (1.4–1.9×).
 struct BatchMeansCheck {
-  Vector9 factor = Vector9::Ones();  // what scaled each σ (1: not significant, or not free)
-  Vector9 ratio = Vector9::Zero();   // corrected batch-means variance / Newey–West's
-  Vector9 dof = Vector9::Zero();     // ν_i
+  ParamVector factor = ParamVector::Ones();  // what scaled each σ (1: not significant, or not free)
+  ParamVector ratio = ParamVector::Zero();   // corrected batch-means variance / Newey–West's
+  ParamVector dof = ParamVector::Zero();     // ν_i
 };
 
-BatchMeansCheck check_against_batch_means(Matrix9& covariance, const Matrix9& normal,
-                                          std::span<const Vector9> batch_scores,
-                                          std::span<const Matrix9> batch_information,
+BatchMeansCheck check_against_batch_means(ParamMatrix& covariance, const ParamMatrix& normal,
+                                          std::span<const ParamVector> batch_scores,
+                                          std::span<const ParamMatrix> batch_information,
                                           const FreeMask& free);
 
 // The 99 % point of χ²_ν / ν (Wilson–Hilferty: within 1 % for ν ≥ 2).

@@ -56,7 +56,7 @@ struct Coordinates {
   std::vector<int> index;
   bool log_scale = false;
   std::array<bool, 4> scaled{};
-  Vector9 base = Vector9::Zero();
+  ParamVector base = ParamVector::Zero();
 
   Eigen::Index size() const {
     return static_cast<Eigen::Index>(index.size()) + (log_scale ? 1 : 0);
@@ -70,8 +70,8 @@ struct Coordinates {
     return z;
   }
 
-  Vector9 to_p(const Eigen::VectorXd& z) const {
-    Vector9 p = base;
+  ParamVector to_p(const Eigen::VectorXd& z) const {
+    ParamVector p = base;
     Eigen::Index o = 0;
     if (log_scale) {
       const double s = std::exp(z[o++]);
@@ -109,7 +109,7 @@ constexpr double kMaxPolePerSample = 50.0;
 constexpr double kUnresolvedPolePerSample = 20.0;
 
 // ρ(A) of the mechanical block at the extremes of T̄ (the bound substeps() uses).
-double stiffness(const Vector9& p, double tbar_lo, double tbar_hi) {
+double stiffness(const ParamVector& p, double tbar_lo, double tbar_hi) {
   const double damping = std::max(std::abs(p[0] + p[1] * tbar_lo), std::abs(p[0] + p[1] * tbar_hi));
   return damping + std::sqrt(std::abs(p[2]));
 }
@@ -137,7 +137,7 @@ class Budget {
     return nullptr;
   }
 
-  PassResult pass(std::span<const WindowSample> w, const Vector9& p, PassSettings ps) {
+  PassResult pass(std::span<const WindowSample> w, const ParamVector& p, PassSettings ps) {
     ps.cancel = cancel_;
     ps.input_delay = input_delay_;
     const double span = w.back().t - w.front().t;
@@ -174,7 +174,7 @@ class Budget {
 };
 
 struct StageResult {
-  Vector9 p;
+  ParamVector p;
   PassResult pass;
   int iterations = 0;
   bool converged = false;
@@ -200,7 +200,7 @@ struct TbarRange {
   double lo = 0.0, hi = 0.0;
 };
 
-bool stable_at(const Vector9& p, const PassResult& pass, const TbarRange& range);
+bool stable_at(const ParamVector& p, const PassResult& pass, const TbarRange& range);
 
 StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c,
                       const PassSettings& pass_settings, int max_iterations, Budget& budget,
@@ -211,7 +211,7 @@ StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c
   auto evaluate = [&](const Eigen::VectorXd& z) {
     Evaluation e;
     if ((e.stop = budget.stop()) != nullptr) return e;
-    const Vector9 p = c.to_p(z);
+    const ParamVector p = c.to_p(z);
     // A non-finite θ is a failed step, never a simulation.
     if (!z.allFinite() || !p.allFinite()) return e;
     e.pass = budget.pass(window, p, pass_settings);
@@ -286,7 +286,7 @@ double dof(std::size_t n, std::size_t p) {
   return std::max(1.0, static_cast<double>(n) - static_cast<double>(p));
 }
 
-bool stable_at(const Vector9& p, const PassResult& pass, const TbarRange& range) {
+bool stable_at(const ParamVector& p, const PassResult& pass, const TbarRange& range) {
   if (!(p[4] > 0.0) || !(p[2] > 0.0)) return false;
   const double lo = std::min(pass.tbar_min, range.lo), hi = std::max(pass.tbar_max, range.hi);
   return p[0] + p[1] * lo > 0.0 && p[0] + p[1] * hi > 0.0;
@@ -310,7 +310,7 @@ double earliest_switch_delay(std::span<const WindowSample> w, double limit) {
 }
 
 // The thermal stage's coordinates (θ5, θ6 unless known, T̄0) from `base`, and its passes: T̄ alone.
-Coordinates thermal_coordinates(const std::array<bool, 6>& known, const Vector9& base) {
+Coordinates thermal_coordinates(const std::array<bool, 6>& known, const ParamVector& base) {
   Coordinates c;
   for (int i : {4, 5})
     if (!known[i]) c.index.push_back(i);
@@ -364,7 +364,7 @@ struct DelayEstimate {
   double sigma = 0.0;            // s, after the batch-means check
   double sigma_inflation = 1.0;  // what the check scaled σ_d by
   bool at_limit = false;
-  Vector9 p = Vector9::Zero();  // the thermal fit at `delay`
+  ParamVector p = ParamVector::Zero();  // the thermal fit at `delay`
 };
 
 // σ_d checked by batch means (refine/delay_batch_means.hpp): three thermal passes at the profile's
@@ -399,7 +399,7 @@ void check_delay(std::span<const WindowSample> window, const Coordinates& c, Del
 // curvature, Δχ² = 1. Its passes are thermal-only (no mechanical sub-steps, ~1/10 of a
 // mechanical pass) and count against a budget of their own, so that a fit with a delay to find
 // has the same budget left for θ1..θ4 as one without.
-DelayEstimate estimate_input_delay(std::span<const WindowSample> window, const Vector9& start,
+DelayEstimate estimate_input_delay(std::span<const WindowSample> window, const ParamVector& start,
                                    const std::array<bool, 6>& known, double limit, int max_it,
                                    const FitSettings& settings) {
   FitSettings own = settings;
@@ -412,7 +412,7 @@ DelayEstimate estimate_input_delay(std::span<const WindowSample> window, const V
   out.p = start;
   double best_cost = inf;
   // The thermal fit at d, started from the best one so far (a few iterations each).
-  auto fit_at = [&](double d, Vector9& p_at) {
+  auto fit_at = [&](double d, ParamVector& p_at) {
     budget.set_input_delay(d);
     if (budget.stop() != nullptr) return inf;
     c.base = out.p;
@@ -421,7 +421,7 @@ DelayEstimate estimate_input_delay(std::span<const WindowSample> window, const V
     return r.pass.finite ? r.pass.cost : inf;
   };
   auto cost_at = [&](double d) {
-    Vector9 p_at = out.p;
+    ParamVector p_at = out.p;
     const double cost = fit_at(d, p_at);
     if (cost < best_cost) {
       best_cost = cost;
@@ -462,7 +462,7 @@ DelayEstimate estimate_input_delay(std::span<const WindowSample> window, const V
     const double vertex = 0.5 * (lo + hi) - 0.5 * (sl + sr) / curvature;
     const bool settled = out.sigma < 4.0 * h && out.sigma > 0.25 * h;
     if (settled && vertex > lo && vertex < hi) {
-      Vector9 p_at = out.p;
+      ParamVector p_at = out.p;
       const double cv = fit_at(vertex, p_at);
       if (cv <= best_cost) {
         best_cost = cv;
@@ -500,7 +500,7 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
   const auto& known = settings.known;
   const int max_it = std::max(1, settings.max_iterations);
 
-  Vector9 p = Vector9::Zero();
+  ParamVector p = ParamVector::Zero();
   p.head<6>() = theta_start;
   p[kX0] = window.front().x;
   p[kXdot0] = 0.0;
@@ -609,7 +609,7 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
     // (b2) the scale.
     ps.jacobian = false;
     auto cost_at = [&](double ln_s) {
-      Vector9 q = p;
+      ParamVector q = p;
       q.head<4>() *= std::exp(ln_s);
       if (!q.allFinite() || budget.stop() != nullptr)
         return std::numeric_limits<double>::infinity();
@@ -639,7 +639,7 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
     p.head<4>() *= std::exp(best_ln);
     // A start that already fits better (the previous window's refined θ, an underdamped
     // actuator whose quasi-static ratios mislead) is kept.
-    Vector9 q = p;
+    ParamVector q = p;
     q.head<4>() = theta_before_search;
     const PassResult at_start = budget.pass(head, q, ps);
     ++iterations;
@@ -763,7 +763,7 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
   const PassResult final_pass = budget.pass(window, p, ps);
   result.evaluations = budget.evaluations();
   if (final_pass.cancelled) return stopped_here("cancelled");
-  Matrix9 white = Matrix9::Zero(), hac = Matrix9::Zero();
+  ParamMatrix white = ParamMatrix::Zero(), hac = ParamMatrix::Zero();
   const bool white_ok = final_pass.finite && inverse_on_free(final_pass.jtwj, free, white);
   const bool hac_ok = white_ok && sandwich_on_free(final_pass.jtwj, final_pass.long_run, free, hac);
   result.hac_lags = lags;

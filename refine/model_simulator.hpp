@@ -23,14 +23,9 @@
 
 #include "refine/fit.hpp"
 #include "refine/matrix_functions.hpp"
+#include "refine/parameters.hpp"
 
 namespace scp::refine {
-
-// Indices into the full parameter vector p = [θ1..θ6, x0, ẋ0, T̄0] the fit works on.
-inline constexpr int kParams = 9;
-inline constexpr int kX0 = 6, kXdot0 = 7, kTbar0 = 8;
-using Vector9 = Eigen::Matrix<double, kParams, 1>;
-using Matrix9 = Eigen::Matrix<double, kParams, kParams>;
 
 struct ModelState {
   double x = 0.0, xdot = 0.0, tbar = 0.0;

@@ -22,8 +22,8 @@ class LongRunAccumulator {
   explicit LongRunAccumulator(int bandwidth)
       : bandwidth_(std::max(1, bandwidth)), ring_(static_cast<std::size_t>(bandwidth_)) {}
 
-  void add(const Vector9& score) {
-    Vector9& slot = ring_[static_cast<std::size_t>(count_ % bandwidth_)];
+  void add(const ParamVector& score) {
+    ParamVector& slot = ring_[static_cast<std::size_t>(count_ % bandwidth_)];
     if (count_ >= bandwidth_) window_sum_ -= slot;
     slot = score;
     window_sum_ += score;
@@ -35,17 +35,17 @@ class LongRunAccumulator {
   }
 
   // Scaled to the N samples (the N − B + 1 full windows stand for all N).
-  Matrix9 result() const {
-    if (windows_ == 0) return Matrix9::Zero();
+  ParamMatrix result() const {
+    if (windows_ == 0) return ParamMatrix::Zero();
     return sum_ * (static_cast<double>(count_) /
                    (static_cast<double>(windows_) * static_cast<double>(bandwidth_)));
   }
 
  private:
   long bandwidth_;
-  std::vector<Vector9> ring_;
-  Vector9 window_sum_ = Vector9::Zero();
-  Matrix9 sum_ = Matrix9::Zero();
+  std::vector<ParamVector> ring_;
+  ParamVector window_sum_ = ParamVector::Zero();
+  ParamMatrix sum_ = ParamMatrix::Zero();
   long count_ = 0;
   long windows_ = 0;
 };
@@ -64,8 +64,8 @@ class BatchSums {
                      : 0),
         samples_(samples),
         next_start_(batches_ > 0 ? 0 : std::numeric_limits<std::size_t>::max()),
-        scores_(batches_, Vector9::Zero()),
-        information_(batches_, Matrix9::Zero()),
+        scores_(batches_, ParamVector::Zero()),
+        information_(batches_, ParamMatrix::Zero()),
         costs_(batches_, 0.0) {}
 
   // The first sample of the next batch (never, without batches).
@@ -73,7 +73,7 @@ class BatchSums {
 
   // At sample k = next_start(), before its contributions to `jtwj` and `cost` (the cost so far
   // without sample k's): closes the batch before and returns where this one's score is summed.
-  Vector9* begin_batch(std::size_t k, const Matrix9& jtwj, double cost) {
+  ParamVector* begin_batch(std::size_t k, const ParamMatrix& jtwj, double cost) {
     finish(jtwj, cost);
     current_ = k * batches_ / samples_;
     open_ = true;
@@ -86,9 +86,9 @@ class BatchSums {
   }
 
   // After the last sample: closes the open batch.
-  void finish(const Matrix9& jtwj, double cost) {
+  void finish(const ParamMatrix& jtwj, double cost) {
     if (!open_) return;
-    const Matrix9 h = jtwj - jtwj_at_start_;
+    const ParamMatrix h = jtwj - jtwj_at_start_;
     information_[current_] = h.selfadjointView<Eigen::Upper>();
     costs_[current_] = cost - cost_at_start_;
     open_ = false;
@@ -104,12 +104,12 @@ class BatchSums {
   std::size_t batches_;
   std::size_t samples_;
   std::size_t next_start_;
-  std::vector<Vector9> scores_;
-  std::vector<Matrix9> information_;
+  std::vector<ParamVector> scores_;
+  std::vector<ParamMatrix> information_;
   std::vector<double> costs_;
   std::size_t current_ = 0;
   bool open_ = false;
-  Matrix9 jtwj_at_start_ = Matrix9::Zero();
+  ParamMatrix jtwj_at_start_ = ParamMatrix::Zero();
   double cost_at_start_ = 0.0;
 };
 
@@ -173,12 +173,12 @@ struct ResidualSums {
 
 }  // namespace
 
-PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
+PassResult residual_pass(std::span<const WindowSample> window, const ParamVector& p,
                          const PassSettings& settings) {
   PassResult r;
   if (window.empty()) return r;
-  const Vector6 theta = p.head<6>();
-  const InitialState initial(p[kX0], p[kXdot0], p[kTbar0]);
+  const Vector6 theta = theta_of(p);
+  const InitialState initial = initial_state_of(p);
   const double wx = settings.thermal_only ? 0.0 : settings.weight[0];
   const double wt = settings.weight[1];
   ResidualSums sums{r, wx, wt};
@@ -222,7 +222,7 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
     SensitivitySimulator sim(theta, initial, settings.thermal_only);
     // The trajectory the timing weights come from (PassSettings::timing_variance).
     const bool timing = settings.timing && !settings.thermal_only;
-    const Vector6 ref_theta = settings.timing_reference.head<6>();
+    const Vector6 ref_theta = theta_of(settings.timing_reference);
     ModelState ref{settings.timing_reference[kX0], settings.timing_reference[kXdot0],
                    settings.timing_reference[kTbar0]};
     ThermalCache ref_cache;
@@ -235,7 +235,7 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
     LandingFilter filter;
     BatchSums batch_sums(settings.batches, window.size());
     std::size_t next_batch = batch_sums.next_start();
-    Vector9* batch_score = nullptr;
+    ParamVector* batch_score = nullptr;
     for (std::size_t k = 0; k < window.size(); ++k) {
       if (k > 0) sim.advance(window[k - 1], window[k], settings.input_delay);
       if (timing && k > 0) {
@@ -247,7 +247,7 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
               window[k].voltage * window[k].voltage - window[k - 1].voltage * window[k - 1].voltage;
           filter.predict(ref_theta, ref_before, ref, window[k].t - window[k - 1].t,
                          since_landing(window[k - 1], window[k], settings.input_delay),
-                         ref_theta[5] * du, settings.timing_variance);
+                         ref_theta[kHeating] * du, settings.timing_variance);
         }
       }
       if (give_up(k, sim.substeps_taken(), sim.state())) {
@@ -260,9 +260,9 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
         batch_score = batch_sums.begin_batch(k, r.jtwj, r.cost - (wx * rx * rx + wt * rt * rt));
         next_batch = batch_sums.next_start();
       }
-      const Vector9& jx = sim.dx();
-      const Vector9& jt = sim.dtbar();
-      Vector9 score;
+      const ParamVector& jx = sim.dx();
+      const ParamVector& jt = sim.dtbar();
+      ParamVector score;
       double omega_k = 1.0, gt_k = 0.0;  // this sample's robust weight and dT̄/dt (timing)
       if (!timing) {
         if (wx > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, wx);
@@ -273,7 +273,8 @@ PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
         // landing filter's prediction covariance P of (x, T̄) (0 without the landings' jitter) and
         // the stamp's s·g gᵀ; the sample counts with W = C⁻¹ over the channels the fit weights.
         const double s = settings.timing_variance;
-        const Eigen::Vector2d g(ref.xdot, -ref_theta[4] * ref.tbar + ref_theta[5] * ref_u);
+        const Eigen::Vector2d g(ref.xdot,
+                                -ref_theta[kCooling] * ref.tbar + ref_theta[kHeating] * ref_u);
         const Eigen::Matrix2d pred =
             landing ? filter.output_covariance() : Eigen::Matrix2d::Zero().eval();
         Eigen::Matrix2d c = pred + s * g * g.transpose();
