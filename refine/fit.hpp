@@ -19,6 +19,7 @@
 #include <span>
 
 #include "estimator/types.hpp"
+#include "refine/stop_reason.hpp"
 
 namespace scp::refine {
 
@@ -100,6 +101,9 @@ struct FitResult {
   bool converged = false;  // the solver met its tolerance and the model is stable at θ
   int iterations = 0;      // solver iterations over all stages, plus the scale search's evaluations
   int evaluations = 0;     // residual passes over the window (FitSettings::max_evaluations)
+  // Why the fit ended short of its verdict or which check of the verdict failed; none when
+  // every stage ran and the verdict passed (then `message` is the solver's).
+  StopReason stop = StopReason::none;
   const char* message = "";  // static string: why it stopped (for logs and the protocol)
   Vector6 theta = Vector6::Zero();
   Vector6 sigma = Vector6::Zero();  // sqrt(diag(covariance)), 0 for known parameters
