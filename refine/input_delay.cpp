@@ -55,57 +55,81 @@ double earliest_switch_delay(std::span<const WindowSample> w, double limit) {
   return inside ? lead : 0.0;
 }
 
-InputDelayEstimate estimate_input_delay(const FitContext& ctx, const ParamVector& start) {
-  const std::span<const WindowSample> window = ctx.window;
-  const double limit = ctx.settings.max_input_delay_s;
-  FitSettings own = ctx.settings;
-  own.max_evaluations = kDelayEvaluations;
-  Budget budget(window, own);
-  const FreeMask slots = thermal_slots(ctx.settings.known);
-  Coordinates c(slots, start);
-  const PassSettings ps = thermal_pass_settings();
-  const double inf = std::numeric_limits<double>::infinity();
-  InputDelayEstimate out;
-  out.p = start;
-  double best_cost = inf;
-  // The thermal fit at d, started from the best one so far (a few iterations each).
-  auto fit_at = [&](double d, ParamVector& p_at) {
-    budget.set_input_delay(d);
-    if (budget.stop() != StopReason::none) return inf;
-    c.base = out.p;
-    const StageResult r = run_stage(window, c, ps, ctx.max_iterations, budget);
+namespace {
+
+// The thermal cost profiled along d: at each d, (θ5, θ6, T̄0) refitted from the best fit so far (a
+// few iterations each); the best point seen is kept in `best`.
+class DelayProfile {
+ public:
+  DelayProfile(const FitContext& ctx, const ParamVector& start)
+      : ctx_(ctx),
+        budget_(ctx.window, own_settings(ctx.settings)),
+        slots_(thermal_slots(ctx.settings.known)),
+        coordinates_(slots_, start) {
+    best.p = start;
+  }
+
+  bool stopped() const { return budget_.stop() != StopReason::none; }
+
+  // The thermal fit's cost at d (∞ where it cannot be simulated); `p_at` its solution.
+  double fit_at(double d, ParamVector& p_at) {
+    budget_.set_input_delay(d);
+    if (stopped()) return kInfinity;
+    coordinates_.base = best.p;
+    const StageResult r =
+        run_stage(ctx_.window, coordinates_, thermal_pass_settings(), ctx_.max_iterations, budget_);
     p_at = r.p;
-    return r.pass.finite ? r.pass.cost : inf;
-  };
-  auto cost_at = [&](double d) {
-    ParamVector p_at = out.p;
+    return r.pass.finite ? r.pass.cost : kInfinity;
+  }
+
+  // fit_at, keeping the best point seen.
+  double cost_at(double d) {
+    ParamVector p_at = best.p;
     const double cost = fit_at(d, p_at);
     if (cost < best_cost) {
       best_cost = cost;
-      out.delay = d;
-      out.p = p_at;
+      best.delay = d;
+      best.p = p_at;
     }
     return cost;
-  };
-  const auto stopped = [&] { return budget.stop() != StopReason::none; };
-  // Golden section to 0.5 µs, then the vertex of the parabola the curvature is measured on: T̄
-  // resolves d to a fraction of a µs on a clean link (tests/refine/test_fit.cpp,
-  // AnUnmodelledOutputLatencyIsEstimatedFromTemperature).
-  const double lowest = -earliest_switch_delay(window, limit);
-  int steps = 0;
-  golden_section(lowest, limit, 0.5e-6, 80, cost_at, stopped,
-                 steps);  // cost_at keeps the best point it has seen
-  if (!std::isfinite(best_cost) || stopped()) return out;
+  }
+
+  // T̄'s residual variance at the best point (the cost has weight 1).
+  double residual_variance() const {
+    return best_cost / dof(ctx_.window.size(), coordinates_.index.size() + 1);
+  }
+
+  Budget& budget() { return budget_; }
+  const FreeMask& slots() const { return slots_; }
+
+  static constexpr double kInfinity = std::numeric_limits<double>::infinity();
+  InputDelayEstimate best;
+  double best_cost = kInfinity;
+
+ private:
+  static FitSettings own_settings(FitSettings s) {
+    s.max_evaluations = kDelayEvaluations;
+    return s;
+  }
+
+  const FitContext& ctx_;
+  Budget budget_;
+  FreeMask slots_;
+  Coordinates coordinates_;
+};
+
+// σ_d from the profile's curvature over ±h, Δχ² = 1, with h near σ_d itself (the parabola is
+// exact there; far smaller steps drown in the solver's tolerance); a side beyond the search range
+// [lowest, limit] is the range's end. Once σ_d and h agree, d̂ moves to the parabola's vertex.
+void measure_curvature(DelayProfile& profile, double lowest, double limit) {
+  InputDelayEstimate& out = profile.best;
   double d = out.delay;
-  // Curvature over ±h with h near σ_d itself (the parabola is exact there; far smaller steps
-  // drown in the solver's tolerance), Δχ² = 1 at σ_d; a side beyond the search range is the
-  // range's end.
   double h = std::min(1e-6, limit / 4);
-  for (int round = 0; round < 8 && !stopped(); ++round) {
-    const double c0 = best_cost;
-    const double var_t = c0 / dof(window.size(), c.index.size() + 1);
+  for (int round = 0; round < 8 && !profile.stopped(); ++round) {
+    const double c0 = profile.best_cost;
+    const double var_t = profile.residual_variance();
     const double lo = std::max(lowest, d - h), hi = std::min(limit, d + h);
-    const double cm = lo < d ? cost_at(lo) : c0, cp = hi > d ? cost_at(hi) : c0;
+    const double cm = lo < d ? profile.cost_at(lo) : c0, cp = hi > d ? profile.cost_at(hi) : c0;
     // The parabola through (lo, cm), (d, c0), (hi, cp).
     const double sl = (c0 - cm) / std::max(d - lo, 1e-300),
                  sr = (cp - c0) / std::max(hi - d, 1e-300);
@@ -121,9 +145,9 @@ InputDelayEstimate estimate_input_delay(const FitContext& ctx, const ParamVector
     const bool settled = out.sigma < 4.0 * h && out.sigma > 0.25 * h;
     if (settled && vertex > lo && vertex < hi) {
       ParamVector p_at = out.p;
-      const double cv = fit_at(vertex, p_at);
-      if (cv <= best_cost) {
-        best_cost = cv;
+      const double cv = profile.fit_at(vertex, p_at);
+      if (cv <= profile.best_cost) {
+        profile.best_cost = cv;
         out.delay = d = vertex;
         out.p = p_at;
       }
@@ -132,11 +156,29 @@ InputDelayEstimate estimate_input_delay(const FitContext& ctx, const ParamVector
     h = std::clamp(out.sigma, 1e-9, limit / 4);
     d = out.delay;
   }
+}
+
+}  // namespace
+
+InputDelayEstimate estimate_input_delay(const FitContext& ctx, const ParamVector& start) {
+  const double limit = ctx.settings.max_input_delay_s;
+  DelayProfile profile(ctx, start);
+  // Golden section to 0.5 µs, then the vertex of the parabola the curvature is measured on: T̄
+  // resolves d to a fraction of a µs on a clean link (tests/refine/test_fit.cpp,
+  // AnUnmodelledOutputLatencyIsEstimatedFromTemperature).
+  const double lowest = -earliest_switch_delay(ctx.window, limit);
+  int steps = 0;
+  golden_section(
+      lowest, limit, 0.5e-6, 80, [&](double d) { return profile.cost_at(d); },
+      [&] { return profile.stopped(); }, steps);  // cost_at keeps the best point it has seen
+  if (!std::isfinite(profile.best_cost) || profile.stopped()) return profile.best;
+  measure_curvature(profile, lowest, limit);
+  InputDelayEstimate& out = profile.best;
   out.at_limit = std::abs(out.delay) > limit * (1.0 - 1e-6);
   if (out.ok && ctx.settings.covariance_batches > 1) {
     // best_cost is the weight-1 cost at (d̂, out.p): T̄'s residual variance, as σ_d's own.
-    const double var_t = best_cost / dof(window.size(), c.index.size() + 1);
-    check_delay(window, slots, out, lowest, var_t, budget, ctx.settings);
+    check_delay(ctx.window, profile.slots(), out, lowest, profile.residual_variance(),
+                profile.budget(), ctx.settings);
   }
   return out;
 }
