@@ -9,8 +9,9 @@ namespace {
 
 // The work budget's model sub-steps per sample and pass, on average over the fit. 2 covers a fit
 // at 1 kHz (the paper's fast pole: one sub-step per 1 ms interval) with room to spare. On a link
-// the fit runs up to twice the joint stage's rounds, at 100 Hz, where a 10 ms interval cut in two
-// at the landing takes ~15 sub-steps: 8 there.
+// the fit runs up to twice the joint stage's rounds, on intervals ten times longer cut in two at
+// each landing, each piece into several sub-steps: 8 there (docs/numerics.md, "Figures behind the
+// code comments").
 long substeps_per_sample(const FitSettings& s) {
   return s.sample_timing_jitter ? 8 : 2;
 }

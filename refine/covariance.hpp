@@ -39,13 +39,12 @@ bool sandwich_on_free(const ParamMatrix& normal, const ParamMatrix& long_run, co
 // - with unequal batches the K terms do not count alike, and the zero sum ties them: the
 //   batch-means variance of θ_i is a quadratic form in Gaussian scores whose mean and variance
 //   follow from the H_b exactly (refine/covariance.cpp), a χ² of ν_i = (tr M)²/tr M² degrees of
-//   freedom (Satterthwaite), fewer than K (measured on the paper's excitation: ν = 14 and 11 for
-//   θ1..θ4 and θ5, θ6 in 60 s, 16 and 12 in 300 s; the ratio to Newey–West spread 0.35–2.45 over
-//   100 white-noise seeds, where χ²₁₉/19 would give 0.5–1.6).
+//   freedom (Satterthwaite), fewer than K (on the paper's excitation: docs/numerics.md, "A
+//   consistent estimate").
 // A coordinate whose corrected batch-means variance exceeds Newey–West's beyond the 99 % point of
 // χ²_ν/ν is scaled by √(ratio); the others keep factor 1. `covariance` becomes D·covariance·D,
 // its correlations kept. At 99 % one white-noise window in a hundred is scaled for nothing; what
-// the check lets through is a σ at most √(χ²_ν(0.99)/ν) too small (1.4–1.9×).
+// the check lets through is a σ at most √(χ²_ν(0.99)/ν) too small.
 struct BatchMeansCheck {
   ParamVector factor = ParamVector::Ones();  // what scaled each σ (1: not significant, or not free)
   ParamVector ratio = ParamVector::Zero();   // corrected batch-means variance / Newey–West's
@@ -57,7 +56,8 @@ BatchMeansCheck check_against_batch_means(ParamMatrix& covariance, const ParamMa
                                           std::span<const ParamMatrix> batch_information,
                                           const FreeMask& free);
 
-// The 99 % point of χ²_ν / ν (Wilson–Hilferty: within 1 % for ν ≥ 2).
+// The 99 % point of χ²_ν / ν (Wilson–Hilferty: within 1 % for ν ≥ 2,
+// tests/refine/test_covariance.cpp).
 double chi_square_99_over_dof(double dof);
 
 // Newey–West lags for N samples whose residuals have lag-one autocorrelation rho: the larger of

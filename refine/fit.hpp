@@ -54,9 +54,10 @@ struct FitSettings {
   // too optimistic.
   int hac_lags = 0;
   // Batches of the batch-means check on the covariance (refine/covariance.hpp,
-  // FitResult::sigma_inflation); < 2 turns it off. 20: 15 s each in a 300 s window, far longer
-  // than the mechanical slow pole's 0.7 s, and enough of them for ~11-18 degrees of freedom on
-  // the paper's voltage, so that a 99 % test flags a σ 1.4× too small.
+  // FitResult::sigma_inflation); < 2 turns it off. The default makes each batch of a 300 s window
+  // far longer than the mechanical slow pole, and leaves enough of them for a 99 % test to flag a
+  // σ well short of the truth (the degrees of freedom on the paper's voltage: docs/numerics.md,
+  // "A consistent estimate").
   int covariance_batches = 20;
   // Bounds on the work of one fit, whatever the data: residual passes over the window (each
   // Levenberg–Marquardt trial, each point of the scale search), and model sub-steps in all of them
@@ -70,8 +71,9 @@ struct FitSettings {
   // > 0: the voltage's timing relative to the samples is known only to within this (s), and a
   // delay d ∈ [−this, this] of every switch is estimated. The common scale of θ1..θ4 (the inertia)
   // is a sub-millisecond lag between heating and motion (the paper's fast pole: 0.8 ms), so x
-  // cannot tell it from a delay of the voltage: 130 µs of unmodelled output latency costs 15 % in
-  // θ1..θ4, while θ5, θ6 barely notice. T̄ can tell: its response to V² has no fast pole, so d is
+  // cannot tell it from a delay of the voltage: 150 µs of unmodelled output latency costs θ1..θ4
+  // more than 5 % (tests/refine/test_fit.cpp, AnUnmodelledOutputLatencyIsEstimatedFromTemperature),
+  // while θ5, θ6 barely notice. T̄ can tell: its response to V² has no fast pole, so d is
   // found from T̄ alone (the thermal stage refitted along d), the rest of the fit uses it, and its
   // uncertainty is added to θ's covariance. 0: the recorded instants are exact (a simulated or
   // sample-synchronous DAC; on noisy T̄ a free d would cost θ1..θ4 more than it could remove).
@@ -79,8 +81,8 @@ struct FitSettings {
   // true: the samples' instants are known only to within a random error (a link's jitter), whose
   // variance is estimated with the noise variances and which the fit weights out of each
   // sample's residual along the trajectory's direction (PassSettings::timing_variance). On a
-  // noise-free link it is most of x's residual (ẋ times the jitter): measured, 41 µs RMS leaves
-  // ~4 nm, ~1e-3 in θ1..θ4 at 100 Hz. false: the stamps are exact.
+  // noise-free link it is most of x's residual (ẋ times the jitter). false: the stamps are
+  // exact.
   bool sample_timing_jitter = false;
   // > 0, with sample_timing_jitter: robust weights beyond this many standard deviations
   // (PassSettings::outlier_threshold), for stamps that a load spike displaced far beyond the
@@ -114,9 +116,8 @@ struct FitResult {
   Vector6 sigma_white = Vector6::Zero();
   // The batch-means check (FitSettings::covariance_batches): the factor by which it scaled each σ
   // of `covariance` (1: not significantly larger than Newey–West's), the corrected ratio it
-  // tested and its degrees of freedom. Measured on 300 s of
-  // a live 10 ms link: factors 2.2-2.6 on θ1..θ4 and 2.8-3.2 on θ5, θ6; on simulated white sensor
-  // noise one run in 180 scaled one σ (scripts/montecarlo).
+  // tested and its degrees of freedom. Above 1 on a live link, rarely on white sensor noise
+  // (docs/numerics.md, "Time on a real link"; bench/montecarlo.md).
   Vector6 sigma_inflation = Vector6::Ones();
   Vector6 batch_ratio = Vector6::Zero();  // batch-means variance / Newey–West's, corrected
   Vector6 batch_dof = Vector6::Zero();    // its degrees of freedom

@@ -32,8 +32,9 @@ Eigen::Matrix3d transition(const Vector6& theta, const ModelState& at, double h)
 void LandingFilter::predict(const Vector6& theta, const ModelState& at_start,
                             const ModelState& at_end, double h, double since_landing,
                             double landing_step, double timing_variance) noexcept {
-  // Linearized at the interval's mean state: at its start instead, the mechanical part of P was
-  // 0.4 % off on the paper's actuator and 3 % on an underdamped one, whose ẋ turns within 10 ms.
+  // Linearized at the interval's mean state: at its start instead, the mechanical part of P is
+  // off where ẋ turns within an interval (an underdamped actuator; docs/numerics.md, "Figures
+  // behind the code comments").
   const ModelState mid{0.5 * (at_start.x + at_end.x), 0.5 * (at_start.xdot + at_end.xdot),
                        0.5 * (at_start.tbar + at_end.tbar)};
   if (!zero_ && h > 0.0) {

@@ -117,9 +117,9 @@ class BatchSums {
 // weight matrix W = [w_xx w_xt; w_xt w_tt], m = √(rᵀWr), a = threshold: 1 up to a; a/m (Huber's)
 // up to 2a; then falling linearly to 0 at 3a, beyond which the sample does not count. A Gaussian
 // two-channel residual lies beyond 2a = 6.1 with probability 1e-8, so the descending part is for
-// gross errors only, which then pull with no force at all. Huber's a/m alone (measured, 0.3 % of
-// the stamps displaced 1-3 ms, all one way): θ1..θ4 1.3-2× further off noise-free, and the jitter
-// estimate 5 % high with sensor noise, where these weights give it to 1 %.
+// gross errors only, which then pull with no force at all. Huber's a/m alone let stamps displaced
+// by milliseconds pull θ1..θ4 and the jitter estimate (docs/numerics.md, "Time on a real link",
+// robust weights).
 double outlier_weight(double threshold, double rx, double rt, double w_xx, double w_xt,
                       double w_tt) {
   if (threshold <= 0.0) return 1.0;

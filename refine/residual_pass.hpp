@@ -1,8 +1,8 @@
 #pragma once
 // One pass over the window at a parameter vector p: the weighted residuals and, optionally, the
-// normal equations of Gauss–Newton accumulated sample by sample. Streaming on purpose: JᵀWJ (9×9)
-// and JᵀWr (9) are summed as the simulation runs, so memory does not grow with the window (an
-// N×9 Jacobian of a 300 s window at 1 kHz, two outputs, would be 43 MB).
+// normal equations of Gauss–Newton accumulated sample by sample. Streaming on purpose: JᵀWJ
+// (kParams × kParams) and JᵀWr are summed as the simulation runs, so memory does not grow with
+// the window (a 2N × kParams Jacobian of a 300 s window at 1 kHz would be tens of megabytes).
 
 #include <array>
 #include <atomic>

@@ -8,8 +8,8 @@
 // feeds the covariance, while the residual, and so the fixed point of the fit, comes from the
 // exact simulation. ∂T̄/∂(θ5, θ6, T̄0) is exact.
 //
-// The outputs are x and T̄. ẋ is simulated (it is part of the state) but not fitted: PAPER-NOTES
-// measured that a velocity sensor adds < 0.1 % information on θ, and most benches lack one.
+// The outputs are x and T̄. ẋ is simulated (it is part of the state) but not fitted: a velocity
+// sensor adds almost no information on θ (PAPER-NOTES), and most benches lack one.
 
 #include "refine/landing_filter.hpp"
 #include "refine/model_simulator.hpp"
