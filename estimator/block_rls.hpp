@@ -134,8 +134,6 @@ class BlockRls {
   // [1e-8, 1] of that formula; the formula itself until three blocks of 16/λP have passed, and
   // always with calibrate_sigma off.
   const Vec& sigma() const noexcept { return sigma_; }
-  // c_i, the calibration factor of the variance profile (s); meaningful once three blocks passed.
-  const Vec& sigma_factor() const noexcept { return calibration_.factor(); }
   // Persistent excitation, scale-free, in [0, 1]: λ_min(D^-½ (R − R_0) D^-½), D = diag(R), where
   // R_0 is what R holds without data (the floor R_min and what is left of the prior I/p0). It is
   // the smallest eigenvalue of the data's information in correlation form, so a column's units,

@@ -383,7 +383,6 @@ PassResult residual_pass(std::span<const WindowSample> window, const ParamVector
   r.tbar_min = r.tbar_max = initial_state_of(p)[2];
   const bool stopped = settings.jacobian ? jacobian_pass(window, p, settings, sums)
                                          : cost_only_pass(window, p, settings, sums);
-  r.samples = window.size();
   r.finite = !stopped && std::isfinite(r.cost) && r.jtwj.allFinite() && r.jtwr.allFinite();
   return r;
 }

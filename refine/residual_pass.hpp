@@ -26,7 +26,7 @@ struct PassSettings {
   // sample count (PassResult::batch_scores, batch_information), for the batch-means check.
   int batches = 0;
   // > 0: give up (finite = false, too_stiff = true) once the simulation has taken more sub-steps
-  // than this: a model stiffer than the caller can afford (refine/fit.cpp bounds it by what the
+  // than this: a model stiffer than the caller can afford (refine/budget.hpp bounds it by what the
   // window's sampling can show), not a reason to spend minutes on one pass.
   long max_substeps = 0;
   // Polled every kCancelStride samples: when it reads true the pass gives up (cancelled = true).
@@ -81,12 +81,11 @@ struct PassResult {
   std::vector<ParamMatrix> batch_information;
   std::vector<double> batch_costs;
   double tbar_min = 0.0, tbar_max = 0.0;  // range of the model's T̄ (damping positivity check)
-  std::size_t samples = 0;
-  long substeps = 0;       // model sub-steps simulated (the pass's cost)
-  bool too_stiff = false;  // stopped at PassSettings::max_substeps
-  bool cancelled = false;  // stopped at PassSettings::cancel
+  long substeps = 0;                      // model sub-steps simulated (the pass's cost)
+  bool too_stiff = false;                 // stopped at PassSettings::max_substeps
+  bool cancelled = false;                 // stopped at PassSettings::cancel
   // With PassSettings::timing, for the re-estimation of the variances v = (σx², σT̄², s) by Fisher
-  // scoring (refine/fit.cpp): per sample, C = Σ + s·g gᵀ, W = C⁻¹, D_j = ∂C/∂v_j, the score
+  // scoring (refine/joint_stage.cpp): per sample, C = Σ + s·g gᵀ, W = C⁻¹, D_j = ∂C/∂v_j, the score
   // ½(rᵀW D_j W r − tr(W D_j)) and the information ½·tr(W D_i W D_j), summed.
   Eigen::Vector3d variance_score = Eigen::Vector3d::Zero();
   Eigen::Matrix3d variance_information = Eigen::Matrix3d::Zero();
