@@ -90,10 +90,8 @@ void BM_Fit300sLightStiffWarm(benchmark::State& state) {
 }
 BENCHMARK(BM_Fit300sLightStiffWarm)->Unit(benchmark::kMillisecond)->Iterations(3);
 
-Vector9 truth_p() {
-  Vector9 p;
-  p << truth(), 0.0, 0.0, 0.0;
-  return p;
+ParamVector truth_p() {
+  return param_vector(truth(), Eigen::Vector3d::Zero());
 }
 
 void BM_PassWithSensitivities(benchmark::State& state) {

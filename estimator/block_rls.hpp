@@ -90,8 +90,8 @@ class BlockRls {
     const Mat wtw = ws.transpose() * ws;
     const Mat a = info_ + wtw;
     // Eigen's pivoted LDLᵀ, written out for fixed N with the same bits (small_ldlt.hpp): a
-    // different factorization (Cholesky) moved the mechanical θ̂ of the scaled default by 1e-7
-    // relative (R is ill-conditioned), so the solve must repeat Eigen's roundings exactly.
+    // different factorization (Cholesky) moves the mechanical θ̂ (R is ill-conditioned), so the
+    // solve must repeat Eigen's roundings exactly.
     const Vec dv = small_ldlt_solve<N>(a, ws.transpose() * eps);
     vartheta_ += f.h * dv;
 
@@ -128,13 +128,12 @@ class BlockRls {
   // σ_i = sqrt(c_i · mean ε² · P_ii / β), θ coordinates. The filter makes ε correlated over about
   // 1/β, so the window holds about β·T independent samples and the least-squares variance
   // mean_ε²·(β ∫wᵀw)⁻¹ becomes mean_ε²·P/β. That treats ε as white at spacing 1/β; under sensor
-  // noise it is 100–250× too large for the thermal pair. Calibrated (sigma_calibration.hpp): the
+  // noise it is far too large for the thermal pair (docs/numerics.md, "σ under noise").
+  // Calibrated (sigma_calibration.hpp): the
   // sandwich's shape mean ε²·(P R₂ P)_ii scaled by c_i measured from θ̂_i's own fluctuation, within
   // [1e-8, 1] of that formula; the formula itself until three blocks of 16/λP have passed, and
   // always with calibrate_sigma off.
   const Vec& sigma() const noexcept { return sigma_; }
-  // c_i, the calibration factor of the variance profile (s); meaningful once three blocks passed.
-  const Vec& sigma_factor() const noexcept { return calibration_.factor(); }
   // Persistent excitation, scale-free, in [0, 1]: λ_min(D^-½ (R − R_0) D^-½), D = diag(R), where
   // R_0 is what R holds without data (the floor R_min and what is left of the prior I/p0). It is
   // the smallest eigenvalue of the data's information in correlation form, so a column's units,
@@ -189,9 +188,9 @@ class BlockRls {
   }
 
   // σ every step; λ_min(R) (p_max_eig, excitation, and the lift of eigenvalues below R_min) from
-  // an eigen-decomposition only when needed. Measured (bench_estimator): the 4×4 eigenvalue solve
-  // alone cost ~0.8 µs CPU, most of an update. P = R⁻¹ comes first (σ needs its diagonal), and
-  // λ_min(R) = 1/λ_max(P) ≥ 1/trace(P) gives a bound for free:
+  // an eigen-decomposition only when needed: the 4×4 eigenvalue solve alone costs most of an
+  // update (bench_estimator; docs/numerics.md, "Figures behind the code comments"). P = R⁻¹ comes
+  // first (σ needs its diagonal), and λ_min(R) = 1/λ_max(P) ≥ 1/trace(P) gives a bound for free:
   // - 1/trace(P) ≥ 2·(R_min + 1e3·eps·N·‖R‖): the eigen-decomposition would have found
   //   λ_min ≥ R_min too (both computations are backward stable to a few eps·‖R‖), so there is
   //   nothing to lift and it is skipped: the same R, θ̂ and σ as deciding with it.
@@ -209,8 +208,9 @@ class BlockRls {
   // closed form every step. Reset and restore refresh everything at once.
   static constexpr int kEigenInterval = 16;
   // excitation() of N > 2 is a diagnostic only (θ̂ never depends on it) describing a window of
-  // 1/λP ≈ 1 s: its own eigenvalue solve runs every kExcitationInterval steps (64 ms at 1 kHz).
-  // Measured (callgrind, paper data): every 16 steps it cost ~210 instructions an update, 7 %.
+  // 1/λP ≈ 1 s: its own eigenvalue solve runs every kExcitationInterval steps (64 ms at 1 kHz),
+  // not every kEigenInterval, where it cost a noticeable share of an update (callgrind;
+  // docs/numerics.md, "Figures behind the code comments").
   static constexpr int kExcitationInterval = 64;
   // The sandwich profile (P R₂ P)_ii (σ's shape and the calibration's reference) is refreshed
   // every kProfileInterval steps and held in between: it changes with the forgetting window
@@ -218,9 +218,10 @@ class BlockRls {
   static constexpr int kProfileInterval = 4;
   static_assert(kExcitationInterval % kEigenInterval == 0);
 
-  // sqrt(x² + y²) for the closed forms of N = 2: std::hypot's overflow guard cost ~50
-  // instructions a call, every step (callgrind). The squares of an information matrix's entries
-  // stay far inside double's range; hypot is kept for a result that is not finite or is zero.
+  // sqrt(x² + y²) for the closed forms of N = 2: std::hypot's overflow guard costs more than the
+  // arithmetic, every step (callgrind; docs/numerics.md, "Figures behind the code comments"). The
+  // squares of an information matrix's entries stay far inside double's range; hypot is kept for a
+  // result that is not finite or is zero.
   static double root_of_squares(double x, double y) noexcept {
     const double r = std::sqrt(x * x + y * y);
     return std::isfinite(r) && r > 0.0 ? r : std::hypot(x, y);
@@ -259,8 +260,9 @@ class BlockRls {
 
   // r⁻¹ for symmetric positive definite r through a Cholesky factor and its inverse, written out
   // for fixed N: Eigen's LDLᵀ solve against I went through its generic (dynamic-size, packing)
-  // triangular solver and cost ~40 % of an update (measured, perf). With r = L·Lᵀ,
-  // r⁻¹ = L⁻ᵀL⁻¹. False, `out` untouched, when r is not numerically positive definite.
+  // triangular solver, a large share of an update (perf; docs/numerics.md, "Figures behind the code
+  // comments"). With r = L·Lᵀ, r⁻¹ = L⁻ᵀL⁻¹. False, `out` untouched, when r is not numerically
+  // positive definite.
   static bool inverse(const Mat& r, Mat& out) noexcept {
     double l[N][N] = {};
     for (int j = 0; j < N; ++j) {
@@ -316,8 +318,9 @@ class BlockRls {
       double l_min = es.eigenvalues()(0);
       if (l_min < r_min) {
         // Mathematically R ≥ R_min, but rounding of order eps·‖R‖ per step accumulates over the
-        // window in the weakly excited directions and can push λ_min below R_min (measured: P up
-        // to 4e12 for p_max = 1e12 with the voltage held). Lift those eigenvalues back; rare.
+        // window in the weakly excited directions and can push λ_min below R_min (P beyond p_max
+        // with the voltage held: docs/numerics.md, "Figures behind the code comments"). Lift those
+        // eigenvalues back; rare.
         es.compute(info_, Eigen::ComputeEigenvectors);
         const Vec lifted = es.eigenvalues().cwiseMax(r_min);
         info_ = es.eigenvectors() * lifted.asDiagonal() * es.eigenvectors().transpose();

@@ -155,9 +155,9 @@ UpdateOutcome Estimator::update(const Measurement& m) noexcept {
   // dynamics. Under a held voltage T̄ is not smooth: T̄' jumps at each switch, at the sample or
   // inside the interval where a link's write landed, and a 3-point quadratic reads that kink as
   // curvature. T̄ then takes the exact path of a lag driven by the held V² (held_lag.hpp) with the
-  // current θ̂5: measured at 100 Hz with the voltage landing mid-interval, the quadratic lag this
-  // replaced left 1.5–2.2e-2 in the mechanical θ̂ and 4–7e-6 in the thermal θ̂, the exact path
-  // 4e-3 and 1e-13 (tests/estimator/test_link_timing.cpp). V² itself is exact under ZOH,
+  // current θ̂5: at 100 Hz with the voltage landing mid-interval it leaves the thermal θ̂ within
+  // 1e-10 (tests/estimator/test_link_timing.cpp), where the quadratic lag it replaced did not
+  // (docs/numerics.md, "Filters"). V² itself is exact under ZOH,
   // split where the voltage changed.
   const Vector6 u = filter_inputs(m);
   Vector2 v;

@@ -7,8 +7,9 @@
 // Numerics (error orders):
 // - Filters β/(s+β) are discretized exactly for inputs linear between samples (first-order hold,
 //   hold_filter.hpp), plus a quadratic correction through the previous sample once it exists:
-//   exact for quadratics, O(h³) global error for smooth inputs. Plain FOH (O(h²)) leaves ~1e-4
-//   bias in the mechanical θ̂ at 1 kHz because the stiffness k/m multiplies its error. With
+//   exact for quadratics, O(h³) global error for smooth inputs. Plain FOH (O(h²)) leaves a bias
+//   in the mechanical θ̂ at 1 kHz because the stiffness k/m multiplies its error
+//   (docs/numerics.md, "Filters"). With
 //   VoltageHold::zoh the V² column instead uses the exact zero-order-hold update, because a DAC
 //   holds the voltage of sample k+1 over (t_k, t_{k+1}]; that column is then exact. When the
 //   voltage changed inside the interval (Measurement::voltage_since), the step is split there:

@@ -6,9 +6,9 @@
 // then T̄(s) = T̄_k·e^{−as} + g·c(s), c(s) = ∫₀ˢ e^{−a(s−r)} V²(r) dr, and the end sample fixes
 // g = (T̄_{k+1} − T̄_k·e^{−ah}) / c(h): only a = θ̂5 comes from the model, as in the quadratic
 // `lag` correction this replaces, but the kink of T̄ at a switch inside the interval is now
-// where it is. Measured on the independent plant with the voltage landing mid-interval at 100 Hz:
-// the lag without the kink left 4–7e-6 in θ̂5, θ̂6. With no heating over the interval (c(h) ≈ 0) the
-// shape is the lag's, (1 − e^{−as})/(1 − e^{−ah}).
+// where it is: the lag without the kink left θ̂5, θ̂6 far outside the 1e-10 that
+// tests/estimator/test_link_timing.cpp allows now (docs/numerics.md, "Filters"). With no heating
+// over the interval (c(h) ≈ 0) the shape is the lag's, (1 − e^{−as})/(1 − e^{−ah}).
 //
 // The filtered step is linear in the end samples, y_{k+1} = φ·y_k + w_prev·T̄_k + w_next·T̄_{k+1},
 // so one pair of weights serves every column built from T̄.

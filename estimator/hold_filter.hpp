@@ -6,13 +6,14 @@
 // ẏ = −βy + βu exactly over h gives, with φ = e^{−βh},
 //   y_{k+1} = φ y_k + c0 u_k + c1 u_{k+1},  c0 = (1−φ)/(βh) − φ,  c1 = 1 − (1−φ)/(βh).
 // It is exact for ramps; for a smooth input the local error is O(h³) (global O(h²)). Holding
-// the measured signals constant instead (ZOH) leaves ~1.5e-3 relative bias in θ̂ at 1 kHz, FOH
-// ~1e-7 (PAPER-NOTES).
+// the measured signals constant instead (ZOH) leaves a bias in θ̂ four orders of magnitude larger
+// (PAPER-NOTES).
 //
 // Quadratic correction (what the estimator uses once three samples are known): FOH alone leaves
 // a global error ≈ −(h²/12)·F[u''], and in the mechanical row the stiffness term multiplies it by
 // k/m ≈ 1813 s⁻², a relative error (h²/12)·k/m ≈ 1.5e-4 of a_f in the "mass" direction at 1 kHz,
-// which biases every mechanical θ̂ᵢ by ~1e-4 (measured). Interpolating through u_{k−1}, u_k,
+// which biases every mechanical θ̂ᵢ as much (docs/numerics.md, "Filters"). Interpolating through
+// u_{k−1}, u_k,
 // u_{k+1} adds J·q to the FOH step, with q the second divided difference and
 //   J = ∫₀ʰ β e^{−β(h−s)} s(s−h) ds = −((h − 2/β)·I1 + h²φ),  I1 = (1−φ)/β − hφ,
 // which makes the step exact for quadratics (local error O(h⁴), global O(h³)).

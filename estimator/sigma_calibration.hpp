@@ -5,9 +5,10 @@
 // Why: σ_i² = mean ε² · P_ii / β assumes the prediction error ε is correlated over 1/β. Under
 // sensor noise ε is mostly the noise passed through the state-variable filter, and for the thermal
 // row that is a high-pass (a_f = β(T − T_f) carries the noise of T): its spectrum vanishes at low
-// frequency, so the error of θ̂ — the noise weighted over the forgetting window 1/λP — is 100–250×
-// smaller than that σ (bench/montecarlo.md). A lag-1 correlation of ε cannot see this (the
-// high-passed noise looks white, τ ≈ one sample, still ~15× too large); what matters is the
+// frequency, so the error of θ̂ — the noise weighted over the forgetting window 1/λP — is two
+// orders of magnitude smaller than that σ (bench/montecarlo.md). A lag-1 correlation of ε cannot
+// see this (the high-passed noise looks white, τ ≈ one sample, and σ stays an order of magnitude
+// too large: docs/numerics.md, "σ under noise"); what matters is the
 // noise's spectrum in the band the forgetting window passes.
 //
 // The law is forgetting-weighted least squares (Rθ̂ = ∫e^{−λP(t−s)} wᵀa ds), so its error is
@@ -22,12 +23,12 @@
 // the median of the last kBlocks of them (robust to the start-up transient, corrected for the
 // median of a χ² with ~B·λP degrees of freedom) is c_i. The caller publishes c_i·profile_i,
 // bounded to [1e-8, 1] times the uncalibrated variance; before kMinBlocks blocks, the uncalibrated.
-// The profile matters: calibrating P_ii instead left θ̂6's σ right on average but 2.3× too large
-// at one phase of the paper's 0.1 Hz sine (tests/estimator/test_sigma_calibration.cpp).
+// The profile matters: calibrating P_ii instead left θ̂6's σ right on average but too large at
+// one phase of the paper's 0.1 Hz sine (tests/estimator/test_sigma_calibration.cpp).
 //
-// What it cannot see: a bias that does not fluctuate (errors-in-variables of θ1..θ4 under noise,
-// −80…−100 %). That is the refined fit's bias test (refine/bias_test.cpp); a σ that is honest
-// about the fluctuation makes that test sharper.
+// What it cannot see: a bias that does not fluctuate (errors-in-variables of θ1..θ4 under noise:
+// docs/numerics.md, "σ under noise"). That is the refined fit's bias test (refine/bias_test.cpp); a
+// σ that is honest about the fluctuation makes that test sharper.
 
 #include <Eigen/Core>
 #include <algorithm>

@@ -4,13 +4,13 @@
 //
 // Why not Eigen's: its LDLᵀ is generic in the size. The factorization walks dynamic-size blocks
 // with run-time loops, computes an L1 norm for rcond() that nobody reads, and tracks the sign of
-// the matrix; on the 4×4 block it was a third of one estimator update (measured, callgrind).
-// Why not a plain Cholesky: R is ill-conditioned (PAPER-NOTES), so a different factorization
-// changes the solve by cond(R)·eps, and the trajectory of θ̂ with it (measured: 1e-7 relative on
-// the scaled default over the paper's 200 s). This one repeats Eigen 3.4's arithmetic operation for
-// operation (the same diagonal pivoting, the same order of every sum, the same zero-pivot rule),
-// so θ̂ stays bit-identical; tests/estimator/test_small_ldlt.cpp checks that against Eigen on
-// random and ill-conditioned matrices. Only the lower triangle of `a` is read, as in Eigen.
+// the matrix; on the 4×4 block that was a large share of one estimator update (callgrind;
+// docs/numerics.md, "Figures behind the code comments"). Why not a plain Cholesky: R is
+// ill-conditioned (PAPER-NOTES), so a different factorization changes the solve by cond(R)·eps, and
+// the trajectory of θ̂ with it. This one repeats Eigen 3.4's arithmetic operation for operation (the
+// same diagonal pivoting, the same order of every sum, the same zero-pivot rule), so θ̂ stays
+// bit-identical; tests/estimator/test_small_ldlt.cpp checks that against Eigen on random and
+// ill-conditioned matrices. Only the lower triangle of `a` is read, as in Eigen.
 //
 // Sums whose order matters (the operation order of Eigen 3.4 at -O3 without FMA):
 // - factorization: A(k,k) − Σ_j L(k,j)·D(j)·L(k,j) and A(i,k) − Σ_j L(i,j)·(D(j)·L(k,j)), summed

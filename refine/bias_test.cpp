@@ -1,10 +1,13 @@
 // The Wald test of another estimate against the refined fit (refine/fit.hpp: test_against).
 #include <Eigen/Cholesky>
+#include <array>
 #include <cmath>
 #include <limits>
+#include <span>
 #include <vector>
 
 #include "refine/fit.hpp"
+#include "refine/parameters.hpp"
 
 namespace scp::refine {
 
@@ -18,10 +21,10 @@ constexpr double kChi2_999[5] = {0.0, 10.828, 13.816, 16.266, 18.467};
 BiasTest test_against(const FitResult& fit, const Vector6& other_theta, const Vector6& other_sigma,
                       const std::array<bool, 6>& known) {
   BiasTest out;
-  const int first[2] = {0, 4}, last[2] = {4, 6};
-  for (int b = 0; b < 2; ++b) {
+  const std::array<std::span<const int>, 2> blocks{kMechanicalTheta, kThermalTheta};
+  for (std::size_t b = 0; b < blocks.size(); ++b) {
     std::vector<int> idx;
-    for (int i = first[b]; i < last[b]; ++i)
+    for (const int i : blocks[b])
       if (!known[i]) idx.push_back(i);
     const auto m = static_cast<Eigen::Index>(idx.size());
     out.threshold[b] = kChi2_999[m];

@@ -12,7 +12,7 @@ int count_free(const FreeMask& free) {
   return static_cast<int>(std::count(free.begin(), free.end(), true));
 }
 
-Eigen::MatrixXd restrict(const Matrix9& m, const FreeMask& free) {
+Eigen::MatrixXd restrict(const ParamMatrix& m, const FreeMask& free) {
   const int n = count_free(free);
   Eigen::MatrixXd r(n, n);
   for (int i = 0, ii = 0; i < kParams; ++i) {
@@ -26,8 +26,8 @@ Eigen::MatrixXd restrict(const Matrix9& m, const FreeMask& free) {
   return r;
 }
 
-Matrix9 expand(const Eigen::MatrixXd& r, const FreeMask& free) {
-  Matrix9 m = Matrix9::Zero();
+ParamMatrix expand(const Eigen::MatrixXd& r, const FreeMask& free) {
+  ParamMatrix m = ParamMatrix::Zero();
   for (int i = 0, ii = 0; i < kParams; ++i) {
     if (!free[i]) continue;
     for (int j = 0, jj = 0; j < kParams; ++j) {
@@ -59,15 +59,15 @@ bool scaled_inverse(const Eigen::MatrixXd& normal, Eigen::MatrixXd& inverse) {
 
 }  // namespace
 
-bool inverse_on_free(const Matrix9& normal, const FreeMask& free, Matrix9& inverse) {
+bool inverse_on_free(const ParamMatrix& normal, const FreeMask& free, ParamMatrix& inverse) {
   Eigen::MatrixXd inv;
   if (!scaled_inverse(restrict(normal, free), inv)) return false;
   inverse = expand(inv, free);
   return true;
 }
 
-bool sandwich_on_free(const Matrix9& normal, const Matrix9& long_run, const FreeMask& free,
-                      Matrix9& covariance) {
+bool sandwich_on_free(const ParamMatrix& normal, const ParamMatrix& long_run, const FreeMask& free,
+                      ParamMatrix& covariance) {
   Eigen::MatrixXd inv;
   if (!scaled_inverse(restrict(normal, free), inv)) return false;
   const Eigen::MatrixXd s = restrict(long_run, free);
@@ -85,18 +85,18 @@ double chi_square_99_over_dof(double dof) {
   return c * c * c;
 }
 
-BatchMeansCheck check_against_batch_means(Matrix9& covariance, const Matrix9& normal,
-                                          std::span<const Vector9> batch_scores,
-                                          std::span<const Matrix9> batch_information,
+BatchMeansCheck check_against_batch_means(ParamMatrix& covariance, const ParamMatrix& normal,
+                                          std::span<const ParamVector> batch_scores,
+                                          std::span<const ParamMatrix> batch_information,
                                           const FreeMask& free) {
   BatchMeansCheck out;
   const std::size_t k = batch_scores.size();
   if (k < 2 || batch_information.size() != k) return out;
-  Matrix9 inverse;
+  ParamMatrix inverse;
   if (!inverse_on_free(normal, free, inverse)) return out;
-  Matrix9 outer = Matrix9::Zero();
-  for (const Vector9& g : batch_scores) outer.noalias() += g * g.transpose();
-  const Matrix9 batch_means = inverse * outer * inverse;  // uncorrected
+  ParamMatrix outer = ParamMatrix::Zero();
+  for (const ParamVector& g : batch_scores) outer.noalias() += g * g.transpose();
+  const ParamMatrix batch_means = inverse * outer * inverse;  // uncorrected
   // Per coordinate i, with a = N⁻¹e_i: y_b = aᵀĝ_b, ĝ_b = g_b − H_b N⁻¹ Σ_c g_c the score at θ̂.
   // Under white residuals (Cov g_b = H_b, independent) Cov(y_b, y_c) = δ_bc·aᵀH_b a −
   // u_bᵀN⁻¹u_c, u_b = H_b a: M. Σ y_b² = the batch-means variance has mean tr M and variance
@@ -106,7 +106,7 @@ BatchMeansCheck check_against_batch_means(Matrix9& covariance, const Matrix9& no
   for (int i = 0; i < kParams; ++i) {
     const double hac = covariance(i, i);
     if (!free[i] || !(hac > 0.0)) continue;
-    const Vector9 a = inverse.col(i);
+    const ParamVector a = inverse.col(i);
     for (std::size_t b = 0; b < k; ++b)
       u.col(static_cast<Eigen::Index>(b)) = batch_information[b] * a;
     m.noalias() = -u.transpose() * inverse * u;

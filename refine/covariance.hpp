@@ -17,19 +17,17 @@
 #include <cstddef>
 #include <span>
 
-#include "refine/model_simulator.hpp"
+#include "refine/parameters.hpp"
 
 namespace scp::refine {
 
-using FreeMask = std::array<bool, kParams>;
-
 // The inverse of `normal` restricted to the free coordinates (zero rows and columns elsewhere);
 // false when that block is not positive definite.
-bool inverse_on_free(const Matrix9& normal, const FreeMask& free, Matrix9& inverse);
+bool inverse_on_free(const ParamMatrix& normal, const FreeMask& free, ParamMatrix& inverse);
 
 // (N⁻¹) S (N⁻¹) on the free coordinates.
-bool sandwich_on_free(const Matrix9& normal, const Matrix9& long_run, const FreeMask& free,
-                      Matrix9& covariance);
+bool sandwich_on_free(const ParamMatrix& normal, const ParamMatrix& long_run, const FreeMask& free,
+                      ParamMatrix& covariance);
 
 // The batch-means check on `covariance` (Newey–West's) from the score g_b and the information
 // H_b summed over K contiguous batches of the window (PassResult::batch_scores,
@@ -41,25 +39,25 @@ bool sandwich_on_free(const Matrix9& normal, const Matrix9& long_run, const Free
 // - with unequal batches the K terms do not count alike, and the zero sum ties them: the
 //   batch-means variance of θ_i is a quadratic form in Gaussian scores whose mean and variance
 //   follow from the H_b exactly (refine/covariance.cpp), a χ² of ν_i = (tr M)²/tr M² degrees of
-//   freedom (Satterthwaite), fewer than K (measured on the paper's excitation: ν = 14 and 11 for
-//   θ1..θ4 and θ5, θ6 in 60 s, 16 and 12 in 300 s; the ratio to Newey–West spread 0.35–2.45 over
-//   100 white-noise seeds, where χ²₁₉/19 would give 0.5–1.6).
+//   freedom (Satterthwaite), fewer than K (on the paper's excitation: docs/numerics.md, "A
+//   consistent estimate").
 // A coordinate whose corrected batch-means variance exceeds Newey–West's beyond the 99 % point of
 // χ²_ν/ν is scaled by √(ratio); the others keep factor 1. `covariance` becomes D·covariance·D,
 // its correlations kept. At 99 % one white-noise window in a hundred is scaled for nothing; what
-// the check lets through is a σ at most √(χ²_ν(0.99)/ν) too small (1.4–1.9×).
+// the check lets through is a σ at most √(χ²_ν(0.99)/ν) too small.
 struct BatchMeansCheck {
-  Vector9 factor = Vector9::Ones();  // what scaled each σ (1: not significant, or not free)
-  Vector9 ratio = Vector9::Zero();   // corrected batch-means variance / Newey–West's
-  Vector9 dof = Vector9::Zero();     // ν_i
+  ParamVector factor = ParamVector::Ones();  // what scaled each σ (1: not significant, or not free)
+  ParamVector ratio = ParamVector::Zero();   // corrected batch-means variance / Newey–West's
+  ParamVector dof = ParamVector::Zero();     // ν_i
 };
 
-BatchMeansCheck check_against_batch_means(Matrix9& covariance, const Matrix9& normal,
-                                          std::span<const Vector9> batch_scores,
-                                          std::span<const Matrix9> batch_information,
+BatchMeansCheck check_against_batch_means(ParamMatrix& covariance, const ParamMatrix& normal,
+                                          std::span<const ParamVector> batch_scores,
+                                          std::span<const ParamMatrix> batch_information,
                                           const FreeMask& free);
 
-// The 99 % point of χ²_ν / ν (Wilson–Hilferty: within 1 % for ν ≥ 2).
+// The 99 % point of χ²_ν / ν (Wilson–Hilferty: within 1 % for ν ≥ 2,
+// tests/refine/test_covariance.cpp).
 double chi_square_99_over_dof(double dof);
 
 // Newey–West lags for N samples whose residuals have lag-one autocorrelation rho: the larger of

@@ -12,23 +12,19 @@ Matrix6 cramer_rao_bound(std::span<const WindowSample> window, const Vector6& th
                          const std::array<bool, 6>& known) {
   Matrix6 bound = Matrix6::Zero();
   if (window.size() < 2 || !theta.allFinite() || !initial.allFinite()) return bound;
-  Vector9 p;
-  p << theta, initial;
+  const ParamVector p = param_vector(theta, initial);
   PassSettings ps;
   for (int c = 0; c < 2; ++c) {
     const double s = noise_sigma[c];
     ps.weight[c] = std::isfinite(s) && s > 0.0 ? 1.0 / (s * s) : 0.0;
   }
   const PassResult pass = residual_pass(window, p, ps);
-  FreeMask free{};
-  for (int i = 0; i < 6; ++i) free[i] = !known[i];
-  free[kX0] = free[kXdot0] = free[kTbar0] = true;
-  Matrix9 inverse;
-  if (!pass.finite || !inverse_on_free(pass.jtwj, free, inverse)) {
+  ParamMatrix inverse;
+  if (!pass.finite || !inverse_on_free(pass.jtwj, free_slots(known), inverse)) {
     bound.setConstant(std::numeric_limits<double>::infinity());
     return bound;
   }
-  return inverse.topLeftCorner<6, 6>();
+  return inverse.topLeftCorner<kThetaSize, kThetaSize>();
 }
 
 }  // namespace scp::refine

@@ -17,17 +17,17 @@ BatchMeansCheck check_delay_against_batch_means(const PassResult& below, const P
       !matches(below) || !matches(at) || !matches(above)) {
     return {};
   }
-  std::vector<Vector9> scores(k);
-  std::vector<Matrix9> information(k);
-  Matrix9 normal = Matrix9::Zero();
+  std::vector<ParamVector> scores(k);
+  std::vector<ParamMatrix> information(k);
+  ParamMatrix normal = ParamMatrix::Zero();
   const auto slot = static_cast<Eigen::Index>(delay_slot);
   for (std::size_t b = 0; b < k; ++b) {
-    Vector9 g = at.batch_scores[b];
-    Matrix9 hb = at.batch_information[b];
+    ParamVector g = at.batch_scores[b];
+    ParamMatrix hb = at.batch_information[b];
     g[slot] = -(above.batch_costs[b] - below.batch_costs[b]) / (4.0 * h);
     hb(slot, slot) =
         (above.batch_costs[b] + below.batch_costs[b] - 2.0 * at.batch_costs[b]) / (2.0 * h * h);
-    const Vector9 cross = -(above.batch_scores[b] - below.batch_scores[b]) / (2.0 * h);
+    const ParamVector cross = -(above.batch_scores[b] - below.batch_scores[b]) / (2.0 * h);
     for (Eigen::Index j = 0; j < kParams; ++j) {
       if (j == slot) continue;
       const double c = free[static_cast<std::size_t>(j)] ? cross[j] : 0.0;
@@ -40,7 +40,7 @@ BatchMeansCheck check_delay_against_batch_means(const PassResult& below, const P
   }
   if (!normal.allFinite()) return {};
   free[delay_slot] = true;
-  Matrix9 covariance = Matrix9::Zero();
+  ParamMatrix covariance = ParamMatrix::Zero();
   if (!inverse_on_free(normal, free, covariance)) return {};
   return check_against_batch_means(covariance, normal, scores, information, free);
 }

@@ -1,9 +1,9 @@
 #pragma once
 // The batch-means check on the voltage's delay d (FitSettings::max_input_delay_s), which the fit
 // profiles from T̄ alone and whose σ_d it takes from the profile's curvature: right when T̄'s
-// residuals are white, too small when the landings' timing wanders slowly (a link whose
-// landing stamps' 10 s means wander by ±10 µs about the one constant d stands for). d moves θ6
-// by 2.6e-7 per µs on the paper's excitation, so a σ_d too small is a θ6 σ too small.
+// residuals are white, too small when the landings' timing wanders slowly (a live link's landing
+// stamps wander about the one constant d stands for: docs/numerics.md, "The delay's σ"). d moves
+// θ6, so a σ_d too small is a θ6 σ too small.
 //
 // The pass has no derivative along d, so it is taken by central differences from three thermal
 // passes at the same (θ5, θ6, T̄0) with d at d̂ − h, d̂, d̂ + h, each summed over the same K

@@ -19,6 +19,7 @@
 #include <span>
 
 #include "estimator/types.hpp"
+#include "refine/stop_reason.hpp"
 
 namespace scp::refine {
 
@@ -53,9 +54,10 @@ struct FitSettings {
   // too optimistic.
   int hac_lags = 0;
   // Batches of the batch-means check on the covariance (refine/covariance.hpp,
-  // FitResult::batch_inflation); < 2 turns it off. 20: 15 s each in a 300 s window, far longer
-  // than the mechanical slow pole's 0.7 s, and enough of them for ~11-18 degrees of freedom on
-  // the paper's voltage, so that a 99 % test flags a σ 1.4× too small.
+  // FitResult::sigma_inflation); < 2 turns it off. The default makes each batch of a 300 s window
+  // far longer than the mechanical slow pole, and leaves enough of them for a 99 % test to flag a
+  // σ well short of the truth (the degrees of freedom on the paper's voltage: docs/numerics.md,
+  // "A consistent estimate").
   int covariance_batches = 20;
   // Bounds on the work of one fit, whatever the data: residual passes over the window (each
   // Levenberg–Marquardt trial, each point of the scale search), and model sub-steps in all of them
@@ -69,8 +71,9 @@ struct FitSettings {
   // > 0: the voltage's timing relative to the samples is known only to within this (s), and a
   // delay d ∈ [−this, this] of every switch is estimated. The common scale of θ1..θ4 (the inertia)
   // is a sub-millisecond lag between heating and motion (the paper's fast pole: 0.8 ms), so x
-  // cannot tell it from a delay of the voltage: 130 µs of unmodelled output latency costs 15 % in
-  // θ1..θ4, while θ5, θ6 barely notice. T̄ can tell: its response to V² has no fast pole, so d is
+  // cannot tell it from a delay of the voltage: 150 µs of unmodelled output latency costs θ1..θ4
+  // more than 5 % (tests/refine/test_fit.cpp, AnUnmodelledOutputLatencyIsEstimatedFromTemperature),
+  // while θ5, θ6 barely notice. T̄ can tell: its response to V² has no fast pole, so d is
   // found from T̄ alone (the thermal stage refitted along d), the rest of the fit uses it, and its
   // uncertainty is added to θ's covariance. 0: the recorded instants are exact (a simulated or
   // sample-synchronous DAC; on noisy T̄ a free d would cost θ1..θ4 more than it could remove).
@@ -78,8 +81,8 @@ struct FitSettings {
   // true: the samples' instants are known only to within a random error (a link's jitter), whose
   // variance is estimated with the noise variances and which the fit weights out of each
   // sample's residual along the trajectory's direction (PassSettings::timing_variance). On a
-  // noise-free link it is most of x's residual (ẋ times the jitter): measured, 41 µs RMS leaves
-  // ~4 nm, ~1e-3 in θ1..θ4 at 100 Hz. false: the stamps are exact.
+  // noise-free link it is most of x's residual (ẋ times the jitter). false: the stamps are
+  // exact.
   bool sample_timing_jitter = false;
   // > 0, with sample_timing_jitter: robust weights beyond this many standard deviations
   // (PassSettings::outlier_threshold), for stamps that a load spike displaced far beyond the
@@ -100,6 +103,9 @@ struct FitResult {
   bool converged = false;  // the solver met its tolerance and the model is stable at θ
   int iterations = 0;      // solver iterations over all stages, plus the scale search's evaluations
   int evaluations = 0;     // residual passes over the window (FitSettings::max_evaluations)
+  // Why the fit ended short of its verdict or which check of the verdict failed; none when
+  // every stage ran and the verdict passed (then `message` is the solver's).
+  StopReason stop = StopReason::none;
   const char* message = "";  // static string: why it stopped (for logs and the protocol)
   Vector6 theta = Vector6::Zero();
   Vector6 sigma = Vector6::Zero();  // sqrt(diag(covariance)), 0 for known parameters
@@ -110,10 +116,9 @@ struct FitResult {
   Vector6 sigma_white = Vector6::Zero();
   // The batch-means check (FitSettings::covariance_batches): the factor by which it scaled each σ
   // of `covariance` (1: not significantly larger than Newey–West's), the corrected ratio it
-  // tested and its degrees of freedom. Measured on 300 s of
-  // a live 10 ms link: factors 2.2-2.6 on θ1..θ4 and 2.8-3.2 on θ5, θ6; on simulated white sensor
-  // noise one run in 180 scaled one σ (scripts/montecarlo).
-  Vector6 batch_inflation = Vector6::Ones();
+  // tested and its degrees of freedom. Above 1 on a live link, rarely on white sensor noise
+  // (docs/numerics.md, "Time on a real link"; bench/montecarlo.md).
+  Vector6 sigma_inflation = Vector6::Ones();
   Vector6 batch_ratio = Vector6::Zero();  // batch-means variance / Newey–West's, corrected
   Vector6 batch_dof = Vector6::Zero();    // its degrees of freedom
   int hac_lags = 0;  // the Newey–West lags used (FitSettings::hac_lags or the automatic choice)
@@ -131,7 +136,7 @@ struct FitResult {
   double input_delay_sigma_s = 0.0;
   // What the batch-means check on d (refine/delay_batch_means.hpp) scaled its σ by; 1 when the
   // batches did not differ beyond chance.
-  double input_delay_batch_factor = 1.0;
+  double input_delay_sigma_inflation = 1.0;
   // FitSettings::sample_timing_jitter: the estimated RMS error of the samples' instants (s).
   double sample_timing_sigma_s = 0.0;
   // FitSettings::outlier_threshold: the samples the final pass down-weighted. The covariance is

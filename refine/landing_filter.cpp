@@ -14,14 +14,15 @@ namespace {
 // Over h: [x, ẋ] ← e^{Mh}·[x, ẋ] + (∫₀ʰ e^{M(h−σ)} e^{−θ5σ} dσ)·c·T̄, and with N = (M + θ5 I)h
 // that integral is e^{−θ5h}·h·φ1(N), e^{Mh} = e^{−θ5h}·e^N: one 2×2 exp_phi.
 Eigen::Matrix3d transition(const Vector6& theta, const ModelState& at, double h) noexcept {
+  const double th1 = theta[kDamping], th2 = theta[kDampingSlope], th3 = theta[kStiffness],
+               th4 = theta[kThermalForce], th5 = theta[kCooling];
   Matrix2 n;
-  n << theta[4], 1.0, -theta[2], theta[4] - (theta[0] + theta[1] * at.tbar);
+  n << th5, 1.0, -th3, th5 - (th1 + th2 * at.tbar);
   const ExpPhi ef = exp_phi(n * h);
-  const double decay = std::exp(-theta[4] * h);
+  const double decay = std::exp(-th5 * h);
   Eigen::Matrix3d phi = Eigen::Matrix3d::Zero();
   phi.topLeftCorner<2, 2>() = decay * ef.exp;
-  phi.block<2, 1>(0, 2) =
-      decay * h * ef.phi1 * Eigen::Vector2d(0.0, -(theta[1] * at.xdot + theta[3]));
+  phi.block<2, 1>(0, 2) = decay * h * ef.phi1 * Eigen::Vector2d(0.0, -(th2 * at.xdot + th4));
   phi(2, 2) = decay;
   return phi;
 }
@@ -31,8 +32,9 @@ Eigen::Matrix3d transition(const Vector6& theta, const ModelState& at, double h)
 void LandingFilter::predict(const Vector6& theta, const ModelState& at_start,
                             const ModelState& at_end, double h, double since_landing,
                             double landing_step, double timing_variance) noexcept {
-  // Linearized at the interval's mean state: at its start instead, the mechanical part of P was
-  // 0.4 % off on the paper's actuator and 3 % on an underdamped one, whose ẋ turns within 10 ms.
+  // Linearized at the interval's mean state: at its start instead, the mechanical part of P is
+  // off where ẋ turns within an interval (an underdamped actuator; docs/numerics.md, "Figures
+  // behind the code comments").
   const ModelState mid{0.5 * (at_start.x + at_end.x), 0.5 * (at_start.xdot + at_end.xdot),
                        0.5 * (at_start.tbar + at_end.tbar)};
   if (!zero_ && h > 0.0) {

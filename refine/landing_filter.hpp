@@ -6,18 +6,16 @@
 // noise on the thermal state. T̄'s error then drives x through −(θ2·ẋ + θ4)·T̄ and stays there for
 // the slow mechanical pole (0.7 s for the paper's actuator), long after T̄'s own innovation has
 // taken it out of T̄. A filter on T̄ alone leaves that error in x, where it is slow and correlated
-// across seconds (on the simulated link it held the jitter estimate 15 % low). Carrying the 3×3
+// across seconds (on the simulated link it held the jitter estimate low). Carrying the 3×3
 // covariance lets each T̄ innovation correct x and ẋ by the share of their error that T̄'s error
 // explains (the cross-covariance), and tells the fit how uncertain x's prediction still is (P_xx,
 // P_xT̄ in the residuals' covariance). Where the landings' jitter is 0 (a local DAQ, the simulated
 // SCP) P stays 0 and the fit is the plain output-error one.
 //
 // Only T̄'s measurement updates the filter: x stays an output-error channel. Updating with x as
-// well (a full prediction-error filter) was measured on the simulated link (seeds 1–4, 41 µs of
-// jitter on stamps and landings): its residuals came out white (batch-means factor 1.00) but
-// θ1..θ4 were 2.7e-4 off (RMS) at 3.4–3.9σ, against 9e-5 with T̄ alone on the same seeds; likely
-// x's noise-free samples pulling the state onto each sample's stamp error. What slow error
-// remains is in docs/numerics.md ("x filtered as well").
+// well (a full prediction-error filter) whitened the residuals on the simulated link but left
+// θ1..θ4 three times further off and at several σ, likely x's noise-free samples pulling the
+// state onto each sample's stamp error (docs/numerics.md, "x filtered as well").
 
 #include <Eigen/Core>
 

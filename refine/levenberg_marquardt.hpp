@@ -6,16 +6,13 @@
 // the linear solve is done on the Jacobi-scaled matrix to keep its condition number down.
 //
 // Why not Eigen's unsupported LevenbergMarquardt (MINPACK lmder) or Ceres: both want the
-// residual vector and its Jacobian (or per-residual blocks). Measured on the 300 s window at
-// 1 kHz (bench/bench_refine.cpp, BM_EigenLevenbergMarquardt, 2 cores at load ~8): lmder on the
-// joint problem alone, started 1 % off, took 3 function and 2 Jacobian evaluations, 1.17 s CPU,
-// with a 600002 × 9 fjac of 43 MB (119 MB peak RSS); this streaming solver's whole staged fit
-// (thermal, scale search, mechanical, joint with σ̂² re-estimated, Newey–West pass) from the
-// paper law's biased start took 0.91 s CPU in ~9×9 matrices, and reached the same θ̂. lmder's
-// stopping rules (relative ftol/xtol) also know nothing of the noise level, and the per-sample
-// scores the Newey–West covariance needs would be one more pass anyway. Eigen's storage-saving
-// lmstr streams Jacobian rows but still keeps the 2N residual vector and pays a Givens QR update
-// per row; not measured.
+// residual vector and its Jacobian (or per-residual blocks), a 2N × kParams matrix for a window
+// of N samples, where this solver works in kParams × kParams matrices and reaches the same θ̂ in
+// less time (bench/bench_refine.cpp, BM_EigenLevenbergMarquardt; the figures in
+// docs/numerics.md, "Figures behind the code comments"). lmder's stopping rules (relative
+// ftol/xtol) also know nothing of the noise level, and the per-sample scores the Newey–West
+// covariance needs would be one more pass anyway. Eigen's storage-saving lmstr streams Jacobian
+// rows but still keeps the 2N residual vector and pays a Givens QR update per row.
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
@@ -64,8 +61,9 @@ LmOutcome<Evaluation> levenberg_marquardt(Evaluate&& evaluate, Eigen::VectorXd z
     return out;
   }
   const Eigen::Index n = z.size();
-  // μ starts small: the scaled normal matrix of the mechanical block has an eigenvalue ~1e-10
-  // (the common scale of θ1..θ4), and a μ above it would crush every step along it.
+  // μ starts small: the scaled normal matrix of the mechanical block has a tiny eigenvalue (the
+  // common scale of θ1..θ4, docs/numerics.md, "A consistent estimate"), and a μ above it would
+  // crush every step along it.
   double mu = 1e-10, nu = 2.0;
   for (int it = 0; it < settings.max_iterations; ++it) {
     out.iterations = it + 1;

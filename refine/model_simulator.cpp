@@ -26,7 +26,8 @@ int pieces_between(const WindowSample& prev, const WindowSample& cur, Piece out[
 }
 
 int substeps(const Vector6& theta, double tbar, double tau) noexcept {
-  const double rho = std::abs(theta[0] + theta[1] * tbar) + std::sqrt(std::abs(theta[2]));
+  const double rho = std::abs(theta[kDamping] + theta[kDampingSlope] * tbar) +
+                     std::sqrt(std::abs(theta[kStiffness]));
   const double n = std::ceil(tau * rho / kMaxStiffnessPerSubstep);
   if (!(n > 1.0)) return 1;
   return n < 1e5 ? static_cast<int>(n) : 100000;
@@ -46,8 +47,8 @@ ThermalPiece thermal_piece(double theta5, double tau) noexcept {
 
 ThermalPiece advance_thermal_piece(const Vector6& theta, const Piece& piece, ModelState& state,
                                    ThermalCache& cache) noexcept {
-  const ThermalPiece& tp = cache.get(theta[4], piece.tau);
-  state.tbar = tp.decay * state.tbar + tp.gain * theta[5] * piece.u;
+  const ThermalPiece& tp = cache.get(theta[kCooling], piece.tau);
+  state.tbar = tp.decay * state.tbar + tp.gain * theta[kHeating] * piece.u;
   return tp;
 }
 
@@ -55,16 +56,17 @@ MechanicalPiece advance_piece(const Vector6& theta, const Piece& piece, ModelSta
                               ThermalCache& cache) noexcept {
   MechanicalPiece mp;
   const double tau = piece.tau;
-  const double input = theta[5] * piece.u;
+  const double input = theta[kHeating] * piece.u;
   const double ta = s.tbar;
-  mp.thermal = cache.get(theta[4], tau);
+  mp.thermal = cache.get(theta[kCooling], tau);
   const ThermalPiece& tp = mp.thermal;
   const double tb = tp.decay * ta + tp.gain * input;
   const double tavg = tp.mean_of_start * ta + tp.mean_of_input * input;
   // T̄ is exponential inside the piece; its slope at the middle differs from the chord's by
   // O(τ²), which enters Ω only at O(τ⁵).
   const double tdot = (tb - ta) / tau;
-  const double th1 = theta[0], th2 = theta[1], th3 = theta[2], th4 = theta[3];
+  const double th1 = theta[kDamping], th2 = theta[kDampingSlope], th3 = theta[kStiffness],
+               th4 = theta[kThermalForce];
   mp.tau = tau;
   mp.c0 = th1 + th2 * tavg;
   mp.q = th2 * tdot;

@@ -13,24 +13,20 @@
 //   [x, ẋ](τ) = e^Ω [x, ẋ](0) + φ1(Ω)·(w1 − τ/2·w2) + τ·φ2(Ω)·w2:
 // exact for a constant damping and a linear forcing (whatever τ·|A|, which is 1.25 for the
 // paper's fast pole at 1 ms), and fourth order in the damping's change with T̄ (θ2 = α1/m).
-// Measured against the project's RK4 plant (20 sub-steps/ms, itself 7e-14 from 400 sub-steps)
-// on the paper's 300 s experiment: see tests/refine/test_model_simulator.cpp for the figures of
-// this scheme and of the simpler ones it replaced. Stable for any step: e^Ω is exact for the
-// frozen system, so a 10 s gap in the record is one step, not 10⁴.
+// It agrees with the project's RK4 plant to within 1e-11 of max |x| on the paper's experiment,
+// an underdamped actuator and a jittered link (tests/refine/test_model_simulator.cpp; the
+// figures of this scheme and of the simpler ones it replaced: docs/numerics.md, "A consistent
+// estimate"). Stable for any step: e^Ω is exact for the frozen system, so a gap in the record is
+// one step.
 
 #include <Eigen/Core>
 #include <span>
 
 #include "refine/fit.hpp"
 #include "refine/matrix_functions.hpp"
+#include "refine/parameters.hpp"
 
 namespace scp::refine {
-
-// Indices into the full parameter vector p = [θ1..θ6, x0, ẋ0, T̄0] the fit works on.
-inline constexpr int kParams = 9;
-inline constexpr int kX0 = 6, kXdot0 = 7, kTbar0 = 8;
-using Vector9 = Eigen::Matrix<double, kParams, 1>;
-using Matrix9 = Eigen::Matrix<double, kParams, kParams>;
 
 struct ModelState {
   double x = 0.0, xdot = 0.0, tbar = 0.0;
@@ -63,7 +59,8 @@ ThermalPiece thermal_piece(double theta5, double tau) noexcept;
 
 // Sub-pieces a piece is cut into so that τ·ρ(A) ≤ 1.5, ρ(A) ≤ |θ1 + θ2 T̄| + √|θ3| (the paper's
 // 1 ms sample: 1.37, one sub-piece). The Magnus truncation grows like τ⁵: through a 10 ms link
-// uncut pieces leave 3e-10 of max|x|, cut ones 4e-13 (tests/refine/test_model_simulator.cpp).
+// uncut pieces would leave x further from the plant than the 1e-11 that
+// tests/refine/test_model_simulator.cpp allows.
 // Capped at 10⁵ (a gap of minutes in a record).
 int substeps(const Vector6& theta, double tbar, double tau) noexcept;
 inline constexpr double kMaxStiffnessPerSubstep = 1.5;  // the τ·ρ(A) bound of substeps()

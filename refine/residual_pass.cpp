@@ -22,8 +22,8 @@ class LongRunAccumulator {
   explicit LongRunAccumulator(int bandwidth)
       : bandwidth_(std::max(1, bandwidth)), ring_(static_cast<std::size_t>(bandwidth_)) {}
 
-  void add(const Vector9& score) {
-    Vector9& slot = ring_[static_cast<std::size_t>(count_ % bandwidth_)];
+  void add(const ParamVector& score) {
+    ParamVector& slot = ring_[static_cast<std::size_t>(count_ % bandwidth_)];
     if (count_ >= bandwidth_) window_sum_ -= slot;
     slot = score;
     window_sum_ += score;
@@ -35,17 +35,17 @@ class LongRunAccumulator {
   }
 
   // Scaled to the N samples (the N − B + 1 full windows stand for all N).
-  Matrix9 result() const {
-    if (windows_ == 0) return Matrix9::Zero();
+  ParamMatrix result() const {
+    if (windows_ == 0) return ParamMatrix::Zero();
     return sum_ * (static_cast<double>(count_) /
                    (static_cast<double>(windows_) * static_cast<double>(bandwidth_)));
   }
 
  private:
   long bandwidth_;
-  std::vector<Vector9> ring_;
-  Vector9 window_sum_ = Vector9::Zero();
-  Matrix9 sum_ = Matrix9::Zero();
+  std::vector<ParamVector> ring_;
+  ParamVector window_sum_ = ParamVector::Zero();
+  ParamMatrix sum_ = ParamMatrix::Zero();
   long count_ = 0;
   long windows_ = 0;
 };
@@ -64,8 +64,8 @@ class BatchSums {
                      : 0),
         samples_(samples),
         next_start_(batches_ > 0 ? 0 : std::numeric_limits<std::size_t>::max()),
-        scores_(batches_, Vector9::Zero()),
-        information_(batches_, Matrix9::Zero()),
+        scores_(batches_, ParamVector::Zero()),
+        information_(batches_, ParamMatrix::Zero()),
         costs_(batches_, 0.0) {}
 
   // The first sample of the next batch (never, without batches).
@@ -73,7 +73,7 @@ class BatchSums {
 
   // At sample k = next_start(), before its contributions to `jtwj` and `cost` (the cost so far
   // without sample k's): closes the batch before and returns where this one's score is summed.
-  Vector9* begin_batch(std::size_t k, const Matrix9& jtwj, double cost) {
+  ParamVector* begin_batch(std::size_t k, const ParamMatrix& jtwj, double cost) {
     finish(jtwj, cost);
     current_ = k * batches_ / samples_;
     open_ = true;
@@ -86,9 +86,9 @@ class BatchSums {
   }
 
   // After the last sample: closes the open batch.
-  void finish(const Matrix9& jtwj, double cost) {
+  void finish(const ParamMatrix& jtwj, double cost) {
     if (!open_) return;
-    const Matrix9 h = jtwj - jtwj_at_start_;
+    const ParamMatrix h = jtwj - jtwj_at_start_;
     information_[current_] = h.selfadjointView<Eigen::Upper>();
     costs_[current_] = cost - cost_at_start_;
     open_ = false;
@@ -104,12 +104,12 @@ class BatchSums {
   std::size_t batches_;
   std::size_t samples_;
   std::size_t next_start_;
-  std::vector<Vector9> scores_;
-  std::vector<Matrix9> information_;
+  std::vector<ParamVector> scores_;
+  std::vector<ParamMatrix> information_;
   std::vector<double> costs_;
   std::size_t current_ = 0;
   bool open_ = false;
-  Matrix9 jtwj_at_start_ = Matrix9::Zero();
+  ParamMatrix jtwj_at_start_ = ParamMatrix::Zero();
   double cost_at_start_ = 0.0;
 };
 
@@ -117,9 +117,9 @@ class BatchSums {
 // weight matrix W = [w_xx w_xt; w_xt w_tt], m = √(rᵀWr), a = threshold: 1 up to a; a/m (Huber's)
 // up to 2a; then falling linearly to 0 at 3a, beyond which the sample does not count. A Gaussian
 // two-channel residual lies beyond 2a = 6.1 with probability 1e-8, so the descending part is for
-// gross errors only, which then pull with no force at all. Huber's a/m alone (measured, 0.3 % of
-// the stamps displaced 1-3 ms, all one way): θ1..θ4 1.3-2× further off noise-free, and the jitter
-// estimate 5 % high with sensor noise, where these weights give it to 1 %.
+// gross errors only, which then pull with no force at all. Huber's a/m alone let stamps displaced
+// by milliseconds pull θ1..θ4 and the jitter estimate (docs/numerics.md, "Time on a real link",
+// robust weights).
 double outlier_weight(double threshold, double rx, double rt, double w_xx, double w_xt,
                       double w_tt) {
   if (threshold <= 0.0) return 1.0;
@@ -144,10 +144,6 @@ double outlier_consistency(double threshold) {
   return threshold > 0.0 ? -std::expm1(-0.5 * threshold * threshold) : 1.0;
 }
 
-}  // namespace
-
-namespace {
-
 // The residual bookkeeping shared by both passes.
 struct ResidualSums {
   PassResult& r;
@@ -171,178 +167,222 @@ struct ResidualSums {
   }
 };
 
+// Whether the pass gives up at sample k: cancelled by the caller, over the sub-step budget, or a
+// state that has left the finite numbers (the rest of the window cannot bring it back).
+bool give_up(const PassSettings& settings, std::size_t k, long substeps, const ModelState& s,
+             PassResult& r) {
+  if (settings.cancel != nullptr && k % kCancelStride == 0 &&
+      settings.cancel->load(std::memory_order_relaxed)) {
+    r.cancelled = true;
+    return true;
+  }
+  if (settings.max_substeps > 0 && substeps > settings.max_substeps) {
+    r.too_stiff = true;
+    return true;
+  }
+  return !std::isfinite(s.x) || !std::isfinite(s.xdot) || !std::isfinite(s.tbar);
+}
+
+// Cost only: the state alone, about three times cheaper than with nine sensitivities. Returns
+// whether it gave up.
+bool cost_only_pass(std::span<const WindowSample> window, const ParamVector& p,
+                    const PassSettings& settings, ResidualSums& sums) {
+  const Vector6 theta = theta_of(p);
+  const InitialState initial = initial_state_of(p);
+  PassResult& r = sums.r;
+  ModelState s{initial[0], initial[1], initial[2]};
+  ThermalCache cache;
+  double rx = 0.0, rt = 0.0;
+  for (std::size_t k = 0; k < window.size(); ++k) {
+    if (k > 0 && settings.thermal_only) {
+      Piece pieces[2];
+      const int n = pieces_between(window[k - 1], window[k], pieces, settings.input_delay);
+      for (int i = 0; i < n; ++i) advance_thermal_piece(theta, pieces[i], s, cache);
+    } else if (k > 0) {
+      r.substeps +=
+          advance_interval(theta, window[k - 1], window[k], settings.input_delay, s, cache);
+    }
+    if (give_up(settings, k, r.substeps, s, r)) return true;
+    sums.add(k, window[k], s, rx, rt);
+  }
+  return false;
+}
+
+// PassSettings::timing: the trajectory the timing weights come from (timing_reference, not p),
+// advanced beside the simulation, with the landing filter (PassSettings::landing_jitter) on it.
+struct Reference {
+  Reference(const PassSettings& settings, bool with_landing_filter)
+      : theta(theta_of(settings.timing_reference)),
+        state{settings.timing_reference[kX0], settings.timing_reference[kXdot0],
+              settings.timing_reference[kTbar0]},
+        landing(with_landing_filter) {}
+
+  void advance(const WindowSample& prev, const WindowSample& cur, const PassSettings& settings) {
+    const ModelState before = state;
+    advance_interval(theta, prev, cur, settings.input_delay, state, cache, &u);
+    if (!landing) return;
+    const double du = cur.voltage * cur.voltage - prev.voltage * prev.voltage;
+    filter.predict(theta, before, state, cur.t - prev.t,
+                   since_landing(prev, cur, settings.input_delay), theta[kHeating] * du,
+                   settings.timing_variance);
+  }
+
+  // The trajectory's velocity g = (ẋ, dT̄/dt) at the sample.
+  Eigen::Vector2d velocity() const {
+    return {state.xdot, -theta[kCooling] * state.tbar + theta[kHeating] * u};
+  }
+
+  Vector6 theta;
+  ModelState state;
+  ThermalCache cache;
+  double u = 0.0;  // V² in effect at the sample
+  bool landing;
+  LandingFilter filter;
+};
+
+// What one timing-weighted sample contributed: its score J_kᵀW r_k (times its robust weight ω).
+struct WeightedSample {
+  ParamVector score;
+  double omega = 1.0;  // the robust weight
+  double gt = 0.0;     // dT̄/dt of the reference at the sample
+};
+
+// PassSettings::timing: one sample's residual r = (rx, rt) with the covariance C = Σ + P + s·g gᵀ:
+// the sensors' Σ = diag(σx², σT̄²), the landing filter's prediction covariance P of (x, T̄) (0
+// without the landings' jitter) and the stamp's s·g gᵀ; the sample counts with W = C⁻¹ over the
+// channels the fit weights, and ω Hampel's weight of its residual at the reference. Adds it to
+// JᵀWJ and the cost (which ResidualSums counted as wx·rx² + wt·rt²), and its share of the
+// variances' Fisher scoring.
+WeightedSample add_timing_weighted(const PassSettings& settings, double wx, double wt,
+                                   const Reference& ref, const WindowSample& sample, double rx,
+                                   double rt, const ParamVector& jx, const ParamVector& jt,
+                                   PassResult& r) {
+  const double s = settings.timing_variance;
+  const Eigen::Vector2d g = ref.velocity();
+  const Eigen::Matrix2d pred =
+      ref.landing ? ref.filter.output_covariance() : Eigen::Matrix2d::Zero().eval();
+  Eigen::Matrix2d c = pred + s * g * g.transpose();
+  if (wx > 0.0) c(0, 0) += 1.0 / wx;
+  if (wt > 0.0) c(1, 1) += 1.0 / wt;
+  Eigen::Matrix2d w = Eigen::Matrix2d::Zero();
+  if (wx > 0.0 && wt > 0.0) {
+    const double det = c(0, 0) * c(1, 1) - c(0, 1) * c(1, 0);  // > 0: Σ is definite
+    w << c(1, 1) / det, -c(0, 1) / det, -c(1, 0) / det, c(0, 0) / det;
+  } else if (wx > 0.0) {
+    w(0, 0) = 1.0 / c(0, 0);
+  } else if (wt > 0.0) {
+    w(1, 1) = 1.0 / c(1, 1);
+  }
+  const double w_xx = w(0, 0), w_xt = w(0, 1), w_tt = w(1, 1);
+  const double omega = outlier_weight(settings.outlier_threshold, sample.x - ref.state.x,
+                                      sample.tbar - ref.state.tbar, w_xx, w_xt, w_tt);
+  if (omega < 1.0) ++r.outliers;
+  if (w_xx != 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, omega * w_xx);
+  if (w_tt != 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jt, omega * w_tt);
+  if (w_xt != 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, jt, omega * w_xt);
+  const Eigen::Vector2d e = w * Eigen::Vector2d(rx, rt);  // W r
+  WeightedSample out;
+  out.score = omega * (e[0] * jx + e[1] * jt);
+  out.omega = omega;
+  out.gt = g[1];
+  r.cost += omega * (rx * e[0] + rt * e[1]) - (wx * rx * rx + wt * rt * rt);
+  // Fisher scoring on v = (σx², σT̄², s): D_x = e₁e₁ᵀ, D_T = e₂e₂ᵀ, D_s = g gᵀ + P/s (the
+  // landing filter's P is proportional to s: its only source is the landings' jitter).
+  const Eigen::Matrix2d d_s =
+      g * g.transpose() + (s > 0.0 ? (pred / s).eval() : Eigen::Matrix2d::Zero().eval());
+  const Eigen::Matrix2d wdw = w * d_s * w;
+  // The variances' score with the quadratic terms weighted ω²/κ (Huber's proposal 2): a
+  // down-weighted sample adds at most threshold² however far its stamp was displaced, and
+  // κ = E[min(m², a²)]/2 = 1 − e^{−a²/2} for a Gaussian two-channel residual keeps the estimate
+  // unbiased on clean data.
+  const double q2 = omega * omega / outlier_consistency(settings.outlier_threshold);
+  r.variance_score += 0.5 * Eigen::Vector3d(q2 * e[0] * e[0] - w_xx, q2 * e[1] * e[1] - w_tt,
+                                            q2 * e.dot(d_s * e) - (w * d_s).trace());
+  Eigen::Matrix3d info;
+  info << w_xx * w_xx, w_xt * w_xt, wdw(0, 0),  //
+      w_xt * w_xt, w_tt * w_tt, wdw(1, 1),      //
+      wdw(0, 0), wdw(1, 1), (wdw * d_s).trace();
+  r.variance_information += 0.5 * info;
+  r.speed_squares[0] += g[0] * g[0];
+  r.speed_squares[1] += g[1] * g[1];
+  return out;
+}
+
+// With sensitivities: JᵀWJ, JᵀWr and, as PassSettings asks, the long-run covariance of the score,
+// its batch sums, the timing weights and the landing filter. Returns whether it gave up.
+bool jacobian_pass(std::span<const WindowSample> window, const ParamVector& p,
+                   const PassSettings& settings, ResidualSums& sums) {
+  PassResult& r = sums.r;
+  const double wx = sums.wx, wt = sums.wt;
+  SensitivitySimulator sim(theta_of(p), initial_state_of(p), settings.thermal_only);
+  const bool timing = settings.timing && !settings.thermal_only;
+  // PassSettings::landing_jitter: the Kalman filter on [x, ẋ, T̄] (refine/landing_filter.hpp).
+  Reference ref(settings, timing && settings.landing_jitter && wt > 0.0);
+  std::unique_ptr<LongRunAccumulator> hac;
+  if (settings.hac_bandwidth > 0)
+    hac = std::make_unique<LongRunAccumulator>(settings.hac_bandwidth);
+  BatchSums batch_sums(settings.batches, window.size());
+  std::size_t next_batch = batch_sums.next_start();
+  ParamVector* batch_score = nullptr;
+  double rx = 0.0, rt = 0.0;
+  bool stopped = false;
+  for (std::size_t k = 0; k < window.size(); ++k) {
+    if (k > 0) sim.advance(window[k - 1], window[k], settings.input_delay);
+    if (timing && k > 0) ref.advance(window[k - 1], window[k], settings);
+    if (give_up(settings, k, sim.substeps_taken(), sim.state(), r)) {
+      stopped = true;
+      break;
+    }
+    sums.add(k, window[k], sim.state(), rx, rt);
+    if (k == next_batch) [[unlikely]] {
+      // sums.add has counted sample k's wx·rx² + wt·rt² already.
+      batch_score = batch_sums.begin_batch(k, r.jtwj, r.cost - (wx * rx * rx + wt * rt * rt));
+      next_batch = batch_sums.next_start();
+    }
+    const ParamVector& jx = sim.dx();
+    const ParamVector& jt = sim.dtbar();
+    WeightedSample sample;
+    if (!timing) {
+      if (wx > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, wx);
+      if (wt > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jt, wt);
+      sample.score = wx * rx * jx + wt * rt * jt;
+    } else {
+      sample = add_timing_weighted(settings, wx, wt, ref, window[k], rx, rt, jx, jt, r);
+    }
+    if (ref.landing) {
+      // The update, after this sample's sensitivities were used: a down-weighted sample
+      // (a displaced stamp) corrects the state as much less as it counts.
+      const Eigen::Vector3d gain = ref.filter.update_with_tbar(
+          1.0 / wt + settings.timing_variance * sample.gt * sample.gt, sample.omega);
+      sim.correct_with_tbar(gain, rt);
+      // The reference trajectory is filtered alike, so that its residuals, which set the
+      // robust weights, are innovations too.
+      correct_with_tbar(ref.state, gain, window[k].tbar - ref.state.tbar);
+    }
+    r.jtwr += sample.score;
+    if (hac) hac->add(sample.score);
+    if (batch_score != nullptr) *batch_score += sample.score;
+  }
+  batch_sums.finish(r.jtwj, r.cost);
+  batch_sums.move_into(r);
+  r.jtwj = r.jtwj.selfadjointView<Eigen::Upper>();
+  if (hac) r.long_run = hac->result();
+  r.substeps = sim.substeps_taken();
+  return stopped;
+}
+
 }  // namespace
 
-PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
+PassResult residual_pass(std::span<const WindowSample> window, const ParamVector& p,
                          const PassSettings& settings) {
   PassResult r;
   if (window.empty()) return r;
-  const Vector6 theta = p.head<6>();
-  const InitialState initial(p[kX0], p[kXdot0], p[kTbar0]);
   const double wx = settings.thermal_only ? 0.0 : settings.weight[0];
   const double wt = settings.weight[1];
   ResidualSums sums{r, wx, wt};
-  r.tbar_min = r.tbar_max = initial[2];
-  double rx = 0.0, rt = 0.0;
-  // Gives up on the pass: cancelled by the caller, over the sub-step budget, or a state that has
-  // left the finite numbers (the rest of the window cannot bring it back).
-  auto give_up = [&](std::size_t k, long substeps, const ModelState& s) {
-    if (settings.cancel != nullptr && k % kCancelStride == 0 &&
-        settings.cancel->load(std::memory_order_relaxed)) {
-      r.cancelled = true;
-      return true;
-    }
-    if (settings.max_substeps > 0 && substeps > settings.max_substeps) {
-      r.too_stiff = true;
-      return true;
-    }
-    return !std::isfinite(s.x) || !std::isfinite(s.xdot) || !std::isfinite(s.tbar);
-  };
-  bool stopped = false;
-  if (!settings.jacobian) {
-    // Cost only: the state alone, about three times cheaper than with nine sensitivities.
-    ModelState s{initial[0], initial[1], initial[2]};
-    ThermalCache cache;
-    for (std::size_t k = 0; k < window.size(); ++k) {
-      if (k > 0 && settings.thermal_only) {
-        Piece pieces[2];
-        const int n = pieces_between(window[k - 1], window[k], pieces, settings.input_delay);
-        for (int i = 0; i < n; ++i) advance_thermal_piece(theta, pieces[i], s, cache);
-      } else if (k > 0) {
-        r.substeps +=
-            advance_interval(theta, window[k - 1], window[k], settings.input_delay, s, cache);
-      }
-      if (give_up(k, r.substeps, s)) {
-        stopped = true;
-        break;
-      }
-      sums.add(k, window[k], s, rx, rt);
-    }
-  } else {
-    SensitivitySimulator sim(theta, initial, settings.thermal_only);
-    // The trajectory the timing weights come from (PassSettings::timing_variance).
-    const bool timing = settings.timing && !settings.thermal_only;
-    const Vector6 ref_theta = settings.timing_reference.head<6>();
-    ModelState ref{settings.timing_reference[kX0], settings.timing_reference[kXdot0],
-                   settings.timing_reference[kTbar0]};
-    ThermalCache ref_cache;
-    double ref_u = 0.0;  // V² in effect at the sample
-    std::unique_ptr<LongRunAccumulator> hac;
-    if (settings.hac_bandwidth > 0)
-      hac = std::make_unique<LongRunAccumulator>(settings.hac_bandwidth);
-    // PassSettings::landing_jitter: the Kalman filter on [x, ẋ, T̄] (refine/landing_filter.hpp).
-    const bool landing = timing && settings.landing_jitter && wt > 0.0;
-    LandingFilter filter;
-    BatchSums batch_sums(settings.batches, window.size());
-    std::size_t next_batch = batch_sums.next_start();
-    Vector9* batch_score = nullptr;
-    for (std::size_t k = 0; k < window.size(); ++k) {
-      if (k > 0) sim.advance(window[k - 1], window[k], settings.input_delay);
-      if (timing && k > 0) {
-        const ModelState ref_before = ref;
-        advance_interval(ref_theta, window[k - 1], window[k], settings.input_delay, ref, ref_cache,
-                         &ref_u);
-        if (landing) {
-          const double du =
-              window[k].voltage * window[k].voltage - window[k - 1].voltage * window[k - 1].voltage;
-          filter.predict(ref_theta, ref_before, ref, window[k].t - window[k - 1].t,
-                         since_landing(window[k - 1], window[k], settings.input_delay),
-                         ref_theta[5] * du, settings.timing_variance);
-        }
-      }
-      if (give_up(k, sim.substeps_taken(), sim.state())) {
-        stopped = true;
-        break;
-      }
-      sums.add(k, window[k], sim.state(), rx, rt);
-      if (k == next_batch) [[unlikely]] {
-        // sums.add has counted sample k's wx·rx² + wt·rt² already.
-        batch_score = batch_sums.begin_batch(k, r.jtwj, r.cost - (wx * rx * rx + wt * rt * rt));
-        next_batch = batch_sums.next_start();
-      }
-      const Vector9& jx = sim.dx();
-      const Vector9& jt = sim.dtbar();
-      Vector9 score;
-      double omega_k = 1.0, gt_k = 0.0;  // this sample's robust weight and dT̄/dt (timing)
-      if (!timing) {
-        if (wx > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, wx);
-        if (wt > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jt, wt);
-        score = wx * rx * jx + wt * rt * jt;
-      } else {
-        // The residual's covariance C = Σ + P + s·g gᵀ: the sensors' Σ = diag(σx², σT̄²), the
-        // landing filter's prediction covariance P of (x, T̄) (0 without the landings' jitter) and
-        // the stamp's s·g gᵀ; the sample counts with W = C⁻¹ over the channels the fit weights.
-        const double s = settings.timing_variance;
-        const Eigen::Vector2d g(ref.xdot, -ref_theta[4] * ref.tbar + ref_theta[5] * ref_u);
-        const Eigen::Matrix2d pred =
-            landing ? filter.output_covariance() : Eigen::Matrix2d::Zero().eval();
-        Eigen::Matrix2d c = pred + s * g * g.transpose();
-        if (wx > 0.0) c(0, 0) += 1.0 / wx;
-        if (wt > 0.0) c(1, 1) += 1.0 / wt;
-        Eigen::Matrix2d w = Eigen::Matrix2d::Zero();
-        if (wx > 0.0 && wt > 0.0) {
-          const double det = c(0, 0) * c(1, 1) - c(0, 1) * c(1, 0);  // > 0: Σ is definite
-          w << c(1, 1) / det, -c(0, 1) / det, -c(1, 0) / det, c(0, 0) / det;
-        } else if (wx > 0.0) {
-          w(0, 0) = 1.0 / c(0, 0);
-        } else if (wt > 0.0) {
-          w(1, 1) = 1.0 / c(1, 1);
-        }
-        const double w_xx = w(0, 0), w_xt = w(0, 1), w_tt = w(1, 1);
-        const double omega = outlier_weight(settings.outlier_threshold, window[k].x - ref.x,
-                                            window[k].tbar - ref.tbar, w_xx, w_xt, w_tt);
-        if (omega < 1.0) ++r.outliers;
-        omega_k = omega;
-        gt_k = g[1];
-        if (w_xx != 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, omega * w_xx);
-        if (w_tt != 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jt, omega * w_tt);
-        if (w_xt != 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, jt, omega * w_xt);
-        const Eigen::Vector2d e = w * Eigen::Vector2d(rx, rt);  // W r
-        score = omega * (e[0] * jx + e[1] * jt);
-        // ResidualSums counted wx·rx² + wt·rt²: the sample's cost is ω·rᵀWr.
-        r.cost += omega * (rx * e[0] + rt * e[1]) - (wx * rx * rx + wt * rt * rt);
-        // Fisher scoring on v = (σx², σT̄², s): D_x = e₁e₁ᵀ, D_T = e₂e₂ᵀ, D_s = g gᵀ + P/s (the
-        // landing filter's P is proportional to s: its only source is the landings' jitter).
-        const Eigen::Matrix2d d_s =
-            g * g.transpose() + (s > 0.0 ? (pred / s).eval() : Eigen::Matrix2d::Zero().eval());
-        const Eigen::Matrix2d wdw = w * d_s * w;
-        // The variances' score with the quadratic terms weighted ω²/κ (Huber's proposal 2): a
-        // down-weighted sample adds at most threshold² however far its stamp was displaced
-        // (with ω·m², 0.3 % of stamps 1-3 ms off read as 50 µs of jitter instead of 41), and
-        // κ = E[min(m², a²)]/2 = 1 − e^{−a²/2} for a Gaussian two-channel residual keeps the
-        // estimate unbiased on clean data (the descending part changes κ by 1e-8).
-        const double q2 = omega * omega / outlier_consistency(settings.outlier_threshold);
-        r.variance_score += 0.5 * Eigen::Vector3d(q2 * e[0] * e[0] - w_xx, q2 * e[1] * e[1] - w_tt,
-                                                  q2 * e.dot(d_s * e) - (w * d_s).trace());
-        Eigen::Matrix3d info;
-        info << w_xx * w_xx, w_xt * w_xt, wdw(0, 0),  //
-            w_xt * w_xt, w_tt * w_tt, wdw(1, 1),      //
-            wdw(0, 0), wdw(1, 1), (wdw * d_s).trace();
-        r.variance_information += 0.5 * info;
-        r.speed_squares[0] += g[0] * g[0];
-        r.speed_squares[1] += g[1] * g[1];
-      }
-      if (landing) {
-        // The update, after this sample's sensitivities were used: a down-weighted sample
-        // (a displaced stamp) corrects the state as much less as it counts.
-        const Eigen::Vector3d gain =
-            filter.update_with_tbar(1.0 / wt + settings.timing_variance * gt_k * gt_k, omega_k);
-        sim.correct_with_tbar(gain, rt);
-        // The reference trajectory is filtered alike, so that its residuals, which set the
-        // robust weights, are innovations too.
-        correct_with_tbar(ref, gain, window[k].tbar - ref.tbar);
-      }
-      r.jtwr += score;
-      if (hac) hac->add(score);
-      if (batch_score != nullptr) *batch_score += score;
-    }
-    batch_sums.finish(r.jtwj, r.cost);
-    batch_sums.move_into(r);
-    r.jtwj = r.jtwj.selfadjointView<Eigen::Upper>();
-    if (hac) r.long_run = hac->result();
-    r.substeps = sim.substeps_taken();
-  }
-  r.samples = window.size();
+  r.tbar_min = r.tbar_max = initial_state_of(p)[2];
+  const bool stopped = settings.jacobian ? jacobian_pass(window, p, settings, sums)
+                                         : cost_only_pass(window, p, settings, sums);
   r.finite = !stopped && std::isfinite(r.cost) && r.jtwj.allFinite() && r.jtwr.allFinite();
   return r;
 }

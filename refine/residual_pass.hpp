@@ -1,8 +1,8 @@
 #pragma once
 // One pass over the window at a parameter vector p: the weighted residuals and, optionally, the
-// normal equations of Gauss–Newton accumulated sample by sample. Streaming on purpose: JᵀWJ (9×9)
-// and JᵀWr (9) are summed as the simulation runs, so memory does not grow with the window (an
-// N×9 Jacobian of a 300 s window at 1 kHz, two outputs, would be 43 MB).
+// normal equations of Gauss–Newton accumulated sample by sample. Streaming on purpose: JᵀWJ
+// (kParams × kParams) and JᵀWr are summed as the simulation runs, so memory does not grow with
+// the window (a 2N × kParams Jacobian of a 300 s window at 1 kHz would be tens of megabytes).
 
 #include <array>
 #include <atomic>
@@ -26,7 +26,7 @@ struct PassSettings {
   // sample count (PassResult::batch_scores, batch_information), for the batch-means check.
   int batches = 0;
   // > 0: give up (finite = false, too_stiff = true) once the simulation has taken more sub-steps
-  // than this: a model stiffer than the caller can afford (refine/fit.cpp bounds it by what the
+  // than this: a model stiffer than the caller can afford (refine/budget.hpp bounds it by what the
   // window's sampling can show), not a reason to spend minutes on one pass.
   long max_substeps = 0;
   // Polled every kCancelStride samples: when it reads true the pass gives up (cancelled = true).
@@ -43,7 +43,7 @@ struct PassSettings {
   // variance 0, where the weights are the plain ones).
   bool timing = false;
   double timing_variance = 0.0;
-  Vector9 timing_reference = Vector9::Zero();
+  ParamVector timing_reference = ParamVector::Zero();
   // > 0 (with `timing`): robust weights. A sample whose residual at `timing_reference`, measured
   // in its own standard deviations m = √(rᵀWr) (W as above), exceeds this threshold a counts less
   // (Hampel's three-part weights: a/m up to 2a, down to 0 at 3a): a stamp a load spike displaced
@@ -68,24 +68,24 @@ inline constexpr std::size_t kCancelStride = 1024;
 struct PassResult {
   bool finite = false;
   double cost = 0.0;  // Σ_k Σ_c w_c r_ck², r = measured − model
-  Matrix9 jtwj = Matrix9::Zero();
-  Vector9 jtwr = Vector9::Zero();
-  std::array<double, 2> rss{};         // Σ r² per channel (unweighted)
-  std::array<double, 2> lag1{};        // Σ r_k·r_{k−1} per channel: the residuals' colour
-  Matrix9 long_run = Matrix9::Zero();  // Σ_{|l|<B} (1 − |l|/B)·Σ_k s_k s_{k+l}ᵀ, s_k = J_kᵀW r_k
+  ParamMatrix jtwj = ParamMatrix::Zero();
+  ParamVector jtwr = ParamVector::Zero();
+  std::array<double, 2> rss{};   // Σ r² per channel (unweighted)
+  std::array<double, 2> lag1{};  // Σ r_k·r_{k−1} per channel: the residuals' colour
+  ParamMatrix long_run =
+      ParamMatrix::Zero();  // Σ_{|l|<B} (1 − |l|/B)·Σ_k s_k s_{k+l}ᵀ, s_k = J_kᵀW r_k
   // With PassSettings::batches = K: per batch b, the score g_b = Σ_{k∈b} s_k and the information
   // H_b = Σ_{k∈b} J_kᵀW J_k (its share of jtwj) and the cost (its share of `cost`); empty
   // otherwise.
-  std::vector<Vector9> batch_scores;
-  std::vector<Matrix9> batch_information;
+  std::vector<ParamVector> batch_scores;
+  std::vector<ParamMatrix> batch_information;
   std::vector<double> batch_costs;
   double tbar_min = 0.0, tbar_max = 0.0;  // range of the model's T̄ (damping positivity check)
-  std::size_t samples = 0;
-  long substeps = 0;       // model sub-steps simulated (the pass's cost)
-  bool too_stiff = false;  // stopped at PassSettings::max_substeps
-  bool cancelled = false;  // stopped at PassSettings::cancel
+  long substeps = 0;                      // model sub-steps simulated (the pass's cost)
+  bool too_stiff = false;                 // stopped at PassSettings::max_substeps
+  bool cancelled = false;                 // stopped at PassSettings::cancel
   // With PassSettings::timing, for the re-estimation of the variances v = (σx², σT̄², s) by Fisher
-  // scoring (refine/fit.cpp): per sample, C = Σ + s·g gᵀ, W = C⁻¹, D_j = ∂C/∂v_j, the score
+  // scoring (refine/joint_stage.cpp): per sample, C = Σ + s·g gᵀ, W = C⁻¹, D_j = ∂C/∂v_j, the score
   // ½(rᵀW D_j W r − tr(W D_j)) and the information ½·tr(W D_i W D_j), summed.
   Eigen::Vector3d variance_score = Eigen::Vector3d::Zero();
   Eigen::Matrix3d variance_information = Eigen::Matrix3d::Zero();
@@ -93,7 +93,7 @@ struct PassResult {
   std::size_t outliers = 0;  // with PassSettings::outlier_threshold: samples down-weighted
 };
 
-PassResult residual_pass(std::span<const WindowSample> window, const Vector9& p,
+PassResult residual_pass(std::span<const WindowSample> window, const ParamVector& p,
                          const PassSettings& settings);
 
 }  // namespace scp::refine

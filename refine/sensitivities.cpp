@@ -7,9 +7,9 @@ SensitivitySimulator::SensitivitySimulator(const Vector6& theta, const InitialSt
     : theta_(theta),
       thermal_only_(thermal_only),
       state_{initial[0], initial[1], initial[2]},
-      dx_(Vector9::Zero()),
-      dxdot_(Vector9::Zero()),
-      dtbar_(Vector9::Zero()) {
+      dx_(ParamVector::Zero()),
+      dxdot_(ParamVector::Zero()),
+      dtbar_(ParamVector::Zero()) {
   dx_[kX0] = 1.0;
   dxdot_[kXdot0] = 1.0;
   dtbar_[kTbar0] = 1.0;
@@ -40,35 +40,36 @@ void SensitivitySimulator::advance(const WindowSample& prev, const WindowSample&
 void SensitivitySimulator::advance_thermal_sensitivities(const Piece& piece, const ThermalPiece& tp,
                                                          double tbar_before) noexcept {
   // T̄(τ) = e^{−θ5τ}T̄(0) + τφ1(−θ5τ)·θ6·u, differentiated exactly.
-  for (int p : {4, 5, kTbar0}) dtbar_[p] *= tp.decay;
-  dtbar_[4] += -piece.tau * tp.decay * tbar_before + tp.dgain_dtheta5 * theta_[5] * piece.u;
-  dtbar_[5] += tp.gain * piece.u;
+  for (int p : {kCooling, kHeating, kTbar0}) dtbar_[p] *= tp.decay;
+  dtbar_[kCooling] +=
+      -piece.tau * tp.decay * tbar_before + tp.dgain_dtheta5 * theta_[kHeating] * piece.u;
+  dtbar_[kHeating] += tp.gain * piece.u;
 }
 
 void SensitivitySimulator::advance_piece_sensitivities(const Piece& piece,
                                                        const MechanicalPiece& mp,
                                                        const ModelState& a) noexcept {
-  const Vector9 dtbar_a = dtbar_;
+  const ParamVector dtbar_a = dtbar_;
   advance_thermal_sensitivities(piece, mp.thermal, a.tbar);
   const ModelState& b = state_;
-  const double th2 = theta_[1], th4 = theta_[3];
+  const double th2 = theta_[kDampingSlope], th4 = theta_[kThermalForce];
   // G_p (second row; the first row of G is 0 because dx/dt = ẋ holds for every p).
-  auto forcing = [&](const ModelState& s, const Vector9& dt) noexcept {
-    Vector9 g;
-    g[0] = -s.xdot;
-    g[1] = -s.tbar * s.xdot;
-    g[2] = -s.x;
-    g[3] = -s.tbar;
+  auto forcing = [&](const ModelState& s, const ParamVector& dt) noexcept {
+    ParamVector g;
+    g[kDamping] = -s.xdot;
+    g[kDampingSlope] = -s.tbar * s.xdot;
+    g[kStiffness] = -s.x;
+    g[kThermalForce] = -s.tbar;
     const double through_tbar = -(th2 * s.xdot + th4);
-    g[4] = through_tbar * dt[4];
-    g[5] = through_tbar * dt[5];
+    g[kCooling] = through_tbar * dt[kCooling];
+    g[kHeating] = through_tbar * dt[kHeating];
     g[kX0] = 0.0;
     g[kXdot0] = 0.0;
     g[kTbar0] = through_tbar * dt[kTbar0];
     return g;
   };
-  const Vector9 ga = forcing(a, dtbar_a);
-  const Vector9 gb = forcing(b, dtbar_);
+  const ParamVector ga = forcing(a, dtbar_a);
+  const ParamVector gb = forcing(b, dtbar_);
   const double tau = mp.tau;
   const double k = tau * tau * tau / 12.0;
   const Matrix2& e = mp.ef.exp;

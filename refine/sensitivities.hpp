@@ -8,8 +8,8 @@
 // feeds the covariance, while the residual, and so the fixed point of the fit, comes from the
 // exact simulation. ∂T̄/∂(θ5, θ6, T̄0) is exact.
 //
-// The outputs are x and T̄. ẋ is simulated (it is part of the state) but not fitted: PAPER-NOTES
-// measured that a velocity sensor adds < 0.1 % information on θ, and most benches lack one.
+// The outputs are x and T̄. ẋ is simulated (it is part of the state) but not fitted: a velocity
+// sensor adds almost no information on θ (PAPER-NOTES), and most benches lack one.
 
 #include "refine/landing_filter.hpp"
 #include "refine/model_simulator.hpp"
@@ -29,8 +29,8 @@ class SensitivitySimulator {
 
   const ModelState& state() const noexcept { return state_; }
   // ∂x/∂p and ∂T̄/∂p at the current sample.
-  const Vector9& dx() const noexcept { return dx_; }
-  const Vector9& dtbar() const noexcept { return dtbar_; }
+  const ParamVector& dx() const noexcept { return dx_; }
+  const ParamVector& dtbar() const noexcept { return dtbar_; }
   // A measurement update with gains K = [Kx, Kẋ, KT̄] on T̄'s innovation e = T̄ measured − T̄ (the
   // Kalman filter of refine/landing_filter.hpp): state += K·e. With K held fixed, since the
   // measurement does not depend on p: ∂x/∂p −= Kx·∂T̄/∂p, ∂ẋ/∂p −= Kẋ·∂T̄/∂p,
@@ -54,7 +54,7 @@ class SensitivitySimulator {
   bool thermal_only_;
   ModelState state_;
   ThermalCache cache_;
-  Vector9 dx_, dxdot_, dtbar_;
+  ParamVector dx_, dxdot_, dtbar_;
   long substeps_ = 0;
 };
 

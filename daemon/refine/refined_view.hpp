@@ -41,7 +41,7 @@ struct RefinedView {
   Seed seed = Seed::none;
   std::array<double, 6> theta_hat{};
   std::array<double, 6> sigma{};  // 0 for known parameters
-  // The factor the batch-means check scaled each σ by (refine::FitResult::batch_inflation).
+  // The factor the batch-means check scaled each σ by (refine::FitResult::sigma_inflation).
   std::array<double, 6> sigma_inflation{1.0, 1.0, 1.0, 1.0, 1.0, 1.0};
   double t_begin = 0.0;  // loop time of the window's first and last samples
   double t_end = 0.0;

@@ -194,7 +194,7 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   v.seed = seed;
   v.theta_hat = to_array6(r.theta);
   v.sigma = to_array6(r.sigma);
-  v.sigma_inflation = to_array6(r.batch_inflation);
+  v.sigma_inflation = to_array6(r.sigma_inflation);
   v.t_begin = r.t_begin;
   v.t_end = r.t_end;
   v.samples = r.samples;
@@ -203,7 +203,7 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   v.input_delay_estimated = r.input_delay_estimated;
   v.input_delay_s = r.input_delay_s;
   v.input_delay_sigma_s = r.input_delay_sigma_s;
-  v.input_delay_sigma_inflation = r.input_delay_batch_factor;
+  v.input_delay_sigma_inflation = r.input_delay_sigma_inflation;
   v.sample_timing_sigma_s = r.sample_timing_sigma_s;
   v.outliers = r.outliers;
   // A result with a non-finite θ̂ is no result, whatever the solver said.

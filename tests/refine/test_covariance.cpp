@@ -20,20 +20,20 @@ TEST(Covariance, ChiSquareQuantileMatchesTheTables) {
 // Linear regression y_k = φ_kᵀβ + e_k with white unit noise over 20 batches: the score sums and
 // information the pass would accumulate, at the least-squares β̂.
 struct Regression {
-  Matrix9 normal = Matrix9::Zero();
-  std::vector<Vector9> scores;
-  std::vector<Matrix9> information;
+  ParamMatrix normal = ParamMatrix::Zero();
+  std::vector<ParamVector> scores;
+  std::vector<ParamMatrix> information;
 };
 
 Regression regression(unsigned seed, double slow_noise) {
   constexpr int kBatches = 20, kPerBatch = 500;
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> gauss(0.0, 1.0);
-  std::vector<Vector9> phi;
+  std::vector<ParamVector> phi;
   std::vector<double> y;
   double slow = 0.0;
   for (int k = 0; k < kBatches * kPerBatch; ++k) {
-    Vector9 f;
+    ParamVector f;
     const double t = k / 1000.0;
     for (int j = 0; j < kParams; ++j) f[j] = std::sin((j + 1) * 0.7 * t + j);  // unequal batches
     phi.push_back(f);
@@ -41,14 +41,14 @@ Regression regression(unsigned seed, double slow_noise) {
     y.push_back(gauss(rng) + slow_noise * slow);
   }
   Regression r;
-  Vector9 rhs = Vector9::Zero();
+  ParamVector rhs = ParamVector::Zero();
   for (std::size_t k = 0; k < phi.size(); ++k) {
     r.normal += phi[k] * phi[k].transpose();
     rhs += phi[k] * y[k];
   }
-  const Vector9 beta = r.normal.ldlt().solve(rhs);
-  r.scores.assign(kBatches, Vector9::Zero());
-  r.information.assign(kBatches, Matrix9::Zero());
+  const ParamVector beta = r.normal.ldlt().solve(rhs);
+  r.scores.assign(kBatches, ParamVector::Zero());
+  r.information.assign(kBatches, ParamMatrix::Zero());
   for (std::size_t k = 0; k < phi.size(); ++k) {
     const std::size_t b = k / kPerBatch;
     r.scores[b] += phi[k] * (y[k] - phi[k].dot(beta));
@@ -64,7 +64,7 @@ TEST(Covariance, BatchMeansAgreeWithTheCovarianceOnWhiteNoise) {
   int scaled = 0, count = 0;
   for (unsigned seed = 1; seed <= 40; ++seed) {
     const Regression r = regression(seed, 0.0);
-    Matrix9 covariance;
+    ParamMatrix covariance;
     ASSERT_TRUE(inverse_on_free(r.normal, free, covariance));
     const BatchMeansCheck check =
         check_against_batch_means(covariance, r.normal, r.scores, r.information, free);
@@ -89,9 +89,9 @@ TEST(Covariance, BatchMeansScaleTheSigmasASlowNoiseHides) {
   double mean_factor = 0.0;
   for (unsigned seed = 1; seed <= 10; ++seed) {
     const Regression r = regression(seed, 0.5);
-    Matrix9 covariance;
+    ParamMatrix covariance;
     ASSERT_TRUE(inverse_on_free(r.normal, free, covariance));
-    const Matrix9 before = covariance;
+    const ParamMatrix before = covariance;
     const BatchMeansCheck check =
         check_against_batch_means(covariance, r.normal, r.scores, r.information, free);
     for (int i = 0; i < kParams; ++i) {
@@ -110,15 +110,15 @@ TEST(Covariance, BatchMeansScaleTheSigmasASlowNoiseHides) {
 }
 
 TEST(Covariance, FewerThanTwoBatchesLeaveTheCovarianceAlone) {
-  Matrix9 covariance = Matrix9::Identity();
-  const std::vector<Vector9> scores(1, Vector9::Ones() * 100.0);
-  const std::vector<Matrix9> information(1, Matrix9::Identity());
+  ParamMatrix covariance = ParamMatrix::Identity();
+  const std::vector<ParamVector> scores(1, ParamVector::Ones() * 100.0);
+  const std::vector<ParamMatrix> information(1, ParamMatrix::Identity());
   FreeMask free{};
   free.fill(true);
   const BatchMeansCheck check =
-      check_against_batch_means(covariance, Matrix9::Identity(), scores, information, free);
-  EXPECT_EQ(check.factor, Vector9::Ones());
-  EXPECT_EQ(covariance, Matrix9::Identity());
+      check_against_batch_means(covariance, ParamMatrix::Identity(), scores, information, free);
+  EXPECT_EQ(check.factor, ParamVector::Ones());
+  EXPECT_EQ(covariance, ParamMatrix::Identity());
 }
 
 }  // namespace

@@ -332,12 +332,12 @@ TEST(Fit, TheLandingsJitterIsFilteredOutOfTbar) {
         "error/sigma of theta1, 5, 6 %.2f, sigma scaled by batch means x%.2f (theta1)\n",
         seed, kJitter * 1e6, plain_error, plain.sigma[0] / truth[0], error,
         filtered.sigma[0] / truth[0], filtered.sample_timing_sigma_s * 1e6, z,
-        filtered.batch_inflation[0]);
+        filtered.sigma_inflation[0]);
     EXPECT_TRUE(filtered.converged) << filtered.message;
     worst_plain = std::max(worst_plain, plain_error);
     worst = std::max(worst, error);
     worst_z = std::max(worst_z, z);
-    mean_factor += filtered.batch_inflation[0] / 4;
+    mean_factor += filtered.sigma_inflation[0] / 4;
     worst_jitter =
         std::max(worst_jitter, std::abs(filtered.sample_timing_sigma_s - kJitter) / kJitter);
   }
@@ -374,11 +374,11 @@ TEST(Fit, TheDelaysSigmaSeesItsLandingStampsWander) {
     const FitResult r = fit(w, truth * 1.1, settings);
     ASSERT_TRUE(r.input_delay_estimated) << r.message;
     const double error = r.input_delay_s - kDelay;
-    const double curvature_sigma = r.input_delay_sigma_s / r.input_delay_batch_factor;
+    const double curvature_sigma = r.input_delay_sigma_s / r.input_delay_sigma_inflation;
     std::printf(
         "seed %u: delay %.2f us, sigma %.2f us (x%.2f by batch means), error/sigma %.2f "
         "(%.2f with the curvature's sigma)\n",
-        seed, r.input_delay_s * 1e6, r.input_delay_sigma_s * 1e6, r.input_delay_batch_factor,
+        seed, r.input_delay_s * 1e6, r.input_delay_sigma_s * 1e6, r.input_delay_sigma_inflation,
         error / r.input_delay_sigma_s, error / curvature_sigma);
     EXPECT_TRUE(r.converged) << r.message;
     z2_checked += error * error / (r.input_delay_sigma_s * r.input_delay_sigma_s) / kSeeds;

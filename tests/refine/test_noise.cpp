@@ -19,7 +19,7 @@ struct Scatter {
   double coverage = 0.0;     // fraction with |θ̂ − θ| ≤ 2σ̂
   double rms_z_white = 0.0;  // the same with the white-noise σ
   double coverage_white = 0.0;
-  double mean_inflation = 0.0;  // FitResult::batch_inflation over seeds and parameters
+  double mean_inflation = 0.0;  // FitResult::sigma_inflation over seeds and parameters
   Vector6 rms_rel_error = Vector6::Zero();
   Vector6 mean_rel_sigma = Vector6::Zero();
   int converged = 0;
@@ -43,7 +43,7 @@ Scatter scatter(const std::vector<WindowSample>& clean, test::Noise noise, int s
       s.rms_z_white += zw * zw;
       s.coverage += std::abs(z) <= 2.0 ? 1 : 0;
       s.coverage_white += std::abs(zw) <= 2.0 ? 1 : 0;
-      s.mean_inflation += r.batch_inflation[i];
+      s.mean_inflation += r.sigma_inflation[i];
       s.rms_rel_error[i] += (e / truth[i]) * (e / truth[i]);
       s.mean_rel_sigma[i] += r.sigma[i] / std::abs(truth[i]);
       ++count;
@@ -144,7 +144,7 @@ TEST_F(Noisy, SigmaMatchesTheCramerRaoBoundAndNoiseIsEstimated) {
     // Newey–West's σ, before the batch-means check: this seed's batch means lie at the 99.6th
     // percentile for θ1..θ4 (ratio 2.45 against ν = 14: the check scales them by 1.57, which a
     // 1 % test does to one white-noise window in a hundred).
-    EXPECT_NEAR(r.sigma[i] / r.batch_inflation[i] / bound, 1.0, 0.15) << i;
+    EXPECT_NEAR(r.sigma[i] / r.sigma_inflation[i] / bound, 1.0, 0.15) << i;
   }
   EXPECT_NEAR(r.noise_sigma[0] / 1e-7, 1.0, 0.02);
   EXPECT_NEAR(r.noise_sigma[1] / 1e-3, 1.0, 0.02);

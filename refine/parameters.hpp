@@ -1,0 +1,66 @@
+#pragma once
+// The parameter vector p that the fit, its sensitivities and its covariance work on, laid out
+// once: the paper's θ (eq. (7)), then the model's state at the window's first sample. A term the
+// fit learns to estimate (a sensor's zero, an ambient offset, an extension's coefficient) is a
+// slot added here: every vector, matrix and mask of the fit is sized by kParams, and the
+// channels a slot acts on are declared beside it (acts_on_tbar).
+
+#include <Eigen/Core>
+#include <array>
+
+#include "estimator/types.hpp"
+
+namespace scp::refine {
+
+// θ = [b/m, α1/m, k/m, α2/m, λ/Cth, 1/(R·Cth)]: θ1..θ6 of the paper.
+inline constexpr int kDamping = 0;       // θ1 = b/m
+inline constexpr int kDampingSlope = 1;  // θ2 = α1/m: the damping's change per °C of T̄
+inline constexpr int kStiffness = 2;     // θ3 = k/m
+inline constexpr int kThermalForce = 3;  // θ4 = α2/m: the contraction's force per °C of T̄
+inline constexpr int kCooling = 4;       // θ5 = λ/Cth
+inline constexpr int kHeating = 5;       // θ6 = 1/(R·Cth)
+// The model's state at the window's first sample: x, ẋ, T̄.
+inline constexpr int kX0 = 6, kXdot0 = 7, kTbar0 = 8;
+inline constexpr int kParams = 9;
+
+inline constexpr int kThetaSize = 6;
+inline constexpr int kMechanicalSize = 4;  // θ1..θ4, at the head of θ
+inline constexpr std::array<int, kMechanicalSize> kMechanicalTheta{kDamping, kDampingSlope,
+                                                                   kStiffness, kThermalForce};
+inline constexpr std::array<int, 2> kThermalTheta{kCooling, kHeating};
+
+using ParamVector = Eigen::Matrix<double, kParams, 1>;
+using ParamMatrix = Eigen::Matrix<double, kParams, kParams>;
+
+// The slots a fit estimates; the others stay where they started.
+using FreeMask = std::array<bool, kParams>;
+
+// θ free unless `known`, the initial state always (a nuisance the window must pay for).
+inline FreeMask free_slots(const std::array<bool, kThetaSize>& known) {
+  FreeMask free{};
+  for (int i = 0; i < kThetaSize; ++i) free[i] = !known[i];
+  free[kX0] = free[kXdot0] = free[kTbar0] = true;
+  return free;
+}
+
+// Whether a slot moves the model's T̄ (the thermal block does not see x); every slot moves x.
+constexpr bool acts_on_tbar(int slot) {
+  return slot == kCooling || slot == kHeating || slot == kTbar0;
+}
+
+// p from θ and the initial state (every other slot 0).
+inline ParamVector param_vector(const estimator::Vector6& theta, const Eigen::Vector3d& initial) {
+  ParamVector p = ParamVector::Zero();
+  p.head<kThetaSize>() = theta;
+  p.segment<3>(kX0) = initial;
+  return p;
+}
+
+inline estimator::Vector6 theta_of(const ParamVector& p) {
+  return p.head<kThetaSize>();
+}
+inline Eigen::Vector3d initial_state_of(const ParamVector& p) {
+  return p.segment<3>(kX0);
+}
+
+}  // namespace scp::refine

@@ -1,0 +1,97 @@
+// The covariance at the joint solution (refine/stages.hpp: estimate_covariance).
+#include <algorithm>
+#include <cmath>
+
+#include "refine/covariance.hpp"
+#include "refine/stages.hpp"
+
+namespace scp::refine {
+
+namespace {
+
+// Newey–West's lags: the caller's (at most a quarter of the window, which would leave too few
+// batches to average), or the automatic choice from the joint pass's lag-one correlations.
+int newey_west_lags(const FitContext& ctx, const PassResult& joint) {
+  const std::size_t n = ctx.window.size();
+  const double rho_x = joint.rss[0] > 0.0 ? joint.lag1[0] / joint.rss[0] : 0.0;
+  const double rho_t = joint.rss[1] > 0.0 ? joint.lag1[1] / joint.rss[1] : 0.0;
+  const int max_lags = static_cast<int>(std::max<std::size_t>(1, n / 4));
+  return ctx.settings.hac_lags > 0 ? std::min(ctx.settings.hac_lags, max_lags)
+                                   : automatic_hac_lags(n, std::max(rho_x, rho_t));
+}
+
+// What σ_d does to θ: the Gauss–Newton step from the solution to the fit at d̂ + σ_d (one pass),
+// added to both covariances as an independent error (the delay comes from T̄'s fit, whose noise
+// the rest of the covariance counts only through θ5, θ6).
+StopReason add_input_delay_error(FitContext& ctx, const FitState& state, PassSettings ps,
+                                 const PassResult& at_solution, const ParamMatrix& white,
+                                 FitResult& result) {
+  ps.hac_bandwidth = 0;
+  ctx.budget.set_input_delay(state.delay.delay + state.delay.sigma);
+  const PassResult shifted = ctx.budget.pass(ctx.window, state.p, ps);
+  ctx.budget.set_input_delay(state.delay.delay);
+  if (shifted.cancelled) return StopReason::cancelled;
+  if (shifted.finite) {
+    const Vector6 shift = (white * (shifted.jtwr - at_solution.jtwr)).head<kThetaSize>();
+    result.covariance_white += shift * shift.transpose();
+    result.covariance += shift * shift.transpose();
+  }
+  return StopReason::none;
+}
+
+// The residuals' RMS and the sensor noise alone: with the timing jitter estimated, its variance
+// components; otherwise RSS/(N − p) per channel.
+void publish_residuals(const FitContext& ctx, const FitState& state, const PassResult& pass,
+                       FitResult& result) {
+  const std::size_t n = ctx.window.size();
+  const std::array<std::size_t, 2> parameters =
+      parameters_per_channel(free_slots(ctx.settings.known));
+  result.residual_rms = Vector2(std::sqrt(pass.rss[0] / static_cast<double>(n)),
+                                std::sqrt(pass.rss[1] / static_cast<double>(n)));
+  result.noise_sigma = ctx.settings.sample_timing_jitter
+                           ? Vector2(std::sqrt(state.noise.x), std::sqrt(state.noise.tbar))
+                           : Vector2(std::sqrt(pass.rss[0] / dof(n, parameters[0])),
+                                     std::sqrt(pass.rss[1] / dof(n, parameters[1])));
+}
+
+}  // namespace
+
+CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, FitResult& result) {
+  CovarianceOutcome out;
+  const int lags = newey_west_lags(ctx, state.joint.pass);
+  PassSettings ps = joint_pass_settings(ctx.settings, state);
+  ps.hac_bandwidth = lags + 1;
+  ps.batches = ctx.settings.covariance_batches;
+  const PassResult pass = ctx.budget.pass(ctx.window, state.p, ps);
+  result.evaluations = ctx.budget.evaluations();
+  if (pass.cancelled) {
+    out.stop = StopReason::cancelled;
+    return out;
+  }
+  const FreeMask free = free_slots(ctx.settings.known);
+  ParamMatrix white = ParamMatrix::Zero(), hac = ParamMatrix::Zero();
+  const bool white_ok = pass.finite && inverse_on_free(pass.jtwj, free, white);
+  out.definite = white_ok && sandwich_on_free(pass.jtwj, pass.long_run, free, hac);
+  out.model_range = {pass.tbar_min, pass.tbar_max};
+  result.hac_lags = lags;
+  result.outliers = pass.outliers;
+  result.covariance_white = white.topLeftCorner<kThetaSize, kThetaSize>();
+  if (out.definite) {
+    const BatchMeansCheck check =
+        check_against_batch_means(hac, pass.jtwj, pass.batch_scores, pass.batch_information, free);
+    result.sigma_inflation = check.factor.head<kThetaSize>();
+    result.batch_ratio = check.ratio.head<kThetaSize>();
+    result.batch_dof = check.dof.head<kThetaSize>();
+  }
+  result.covariance = hac.topLeftCorner<kThetaSize, kThetaSize>();
+  if (state.delay.ok && white_ok && state.delay.sigma > 0.0) {
+    out.stop = add_input_delay_error(ctx, state, ps, pass, white, result);
+    if (out.stop != StopReason::none) return out;
+  }
+  result.sigma_white = result.covariance_white.diagonal().cwiseMax(0.0).cwiseSqrt();
+  result.sigma = result.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+  publish_residuals(ctx, state, pass, result);
+  return out;
+}
+
+}  // namespace scp::refine

@@ -1,0 +1,126 @@
+#include "refine/stage.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <utility>
+
+#include "refine/levenberg_marquardt.hpp"
+
+namespace scp::refine {
+
+namespace {
+
+struct Evaluation {
+  const char* stop = nullptr;  // the fit's budget is spent or it was cancelled
+  bool finite = false;
+  double cost = 0.0;
+  Eigen::MatrixXd normal;
+  Eigen::VectorXd gradient;
+  PassResult pass;
+};
+
+// The cost of residuals at 1e-12 of each channel's RMS: what rounding leaves on noise-free data
+// (the simulator agrees with a 400-sub-step RK4 plant to rounding,
+// tests/refine/test_model_simulator.cpp).
+double rounding_cost(std::span<const WindowSample> w, const std::array<double, 2>& weight) {
+  double sx = 0.0, st = 0.0;
+  for (const WindowSample& s : w) {
+    sx += s.x * s.x;
+    st += s.tbar * s.tbar;
+  }
+  constexpr double kRelative = 1e-12;
+  return kRelative * kRelative * (weight[0] * sx + weight[1] * st);
+}
+
+}  // namespace
+
+Coordinates::Coordinates(const FreeMask& free, const ParamVector& base_p) : base(base_p) {
+  for (int i = 0; i < kParams; ++i)
+    if (free[static_cast<std::size_t>(i)]) index.push_back(i);
+}
+
+Eigen::VectorXd Coordinates::start() const {
+  Eigen::VectorXd z(size());
+  Eigen::Index o = 0;
+  for (int i : index) z[o++] = base[i];
+  return z;
+}
+
+ParamVector Coordinates::to_p(const Eigen::VectorXd& z) const {
+  ParamVector p = base;
+  Eigen::Index o = 0;
+  for (int i : index) p[i] = z[o++];
+  return p;
+}
+
+Eigen::MatrixXd Coordinates::jacobian() const {
+  Eigen::MatrixXd t = Eigen::MatrixXd::Zero(kParams, size());
+  Eigen::Index o = 0;
+  for (int i : index) t(i, o++) = 1.0;
+  return t;
+}
+
+StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c,
+                      const PassSettings& pass_settings, int max_iterations, Budget& budget,
+                      const TbarRange& range) {
+  const double cost_floor = rounding_cost(
+      window,
+      {pass_settings.thermal_only ? 0.0 : pass_settings.weight[0], pass_settings.weight[1]});
+  const Eigen::MatrixXd t = c.jacobian();
+  auto evaluate = [&](const Eigen::VectorXd& z) {
+    Evaluation e;
+    if (const StopReason stop = budget.stop(); stop != StopReason::none) {
+      e.stop = to_text(stop);
+      return e;
+    }
+    const ParamVector p = c.to_p(z);
+    // A non-finite θ is a failed step, never a simulation.
+    if (!z.allFinite() || !p.allFinite()) return e;
+    e.pass = budget.pass(window, p, pass_settings);
+    // An unstable model (negative damping at some T̄ of the window, θ3 or θ5 ≤ 0) counts as not
+    // finite: the solver backs off instead of following a diverging simulation.
+    e.finite =
+        e.pass.finite && std::isfinite(e.pass.cost) &&
+        (pass_settings.thermal_only ? p[kCooling] > 0.0 : stable_over(p, widened(range, e.pass)));
+    e.cost = e.pass.cost;
+    e.normal = t.transpose() * e.pass.jtwj * t;
+    e.gradient = t.transpose() * e.pass.jtwr;
+    return e;
+  };
+  LmSettings lm;
+  lm.max_iterations = max_iterations;
+  lm.observations = static_cast<double>(window.size()) *
+                    ((pass_settings.weight[0] > 0.0 && !pass_settings.thermal_only ? 1.0 : 0.0) +
+                     (pass_settings.weight[1] > 0.0 ? 1.0 : 0.0));
+  lm.cost_floor = cost_floor;
+  auto out = levenberg_marquardt<Evaluation>(evaluate, c.start(), lm);
+  StageResult r;
+  r.p = c.to_p(out.z);
+  r.pass = std::move(out.at_z.pass);
+  r.iterations = out.iterations;
+  r.converged = out.converged;
+  r.message = out.message;
+  r.stopped = budget.stop() != StopReason::none;
+  return r;
+}
+
+std::array<std::size_t, 2> parameters_per_channel(const FreeMask& free) {
+  std::array<std::size_t, 2> count{};
+  for (int i = 0; i < kParams; ++i) {
+    if (!free[static_cast<std::size_t>(i)]) continue;
+    ++count[0];
+    if (acts_on_tbar(i)) ++count[1];
+  }
+  return count;
+}
+
+double variance_floor(std::span<const WindowSample> w, int channel) {
+  double ss = 0.0;
+  for (const WindowSample& s : w) ss += channel == 0 ? s.x * s.x : s.tbar * s.tbar;
+  const double rms = std::sqrt(ss / static_cast<double>(w.size()));
+  const double floor = 1e-15 * rms;
+  return std::max(floor * floor, std::numeric_limits<double>::min());
+}
+
+}  // namespace scp::refine

@@ -1,0 +1,85 @@
+#pragma once
+// One stage of the staged fit (refine/fit.cpp): Levenberg–Marquardt
+// (refine/levenberg_marquardt.hpp) over some of p's slots, the others held, every pass counted by
+// the fit's Budget; and what the stages share about which models they accept.
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <array>
+#include <cstddef>
+#include <span>
+#include <vector>
+
+#include "refine/budget.hpp"
+#include "refine/parameters.hpp"
+#include "refine/residual_pass.hpp"
+
+namespace scp::refine {
+
+// The range of the model's T̄ over the window. A search on a prefix of the window takes the
+// thermal stage's range over all of it, so that it does not accept a damping that turns negative
+// later in the window.
+struct TbarRange {
+  double lo = 0.0, hi = 0.0;
+};
+
+// `range` widened by what a pass's model reached.
+inline TbarRange widened(const TbarRange& range, const PassResult& pass) {
+  return {std::min(pass.tbar_min, range.lo), std::max(pass.tbar_max, range.hi)};
+}
+
+// θ1 + θ2·T̄ > 0 at both ends of `range`: the mechanical block is damped everywhere in it.
+inline bool damped_over(const ParamVector& p, const TbarRange& range) {
+  return p[kDamping] + p[kDampingSlope] * range.lo > 0.0 &&
+         p[kDamping] + p[kDampingSlope] * range.hi > 0.0;
+}
+
+// A model the fit can simulate and accept: damped over `range`, θ3 > 0 and θ5 > 0.
+inline bool stable_over(const ParamVector& p, const TbarRange& range) {
+  if (!(p[kCooling] > 0.0) || !(p[kStiffness] > 0.0)) return false;
+  return damped_over(p, range);
+}
+
+// The coordinates z a stage fits: p[index[i]] = z[i] for the slots `free` marks (in slot order),
+// the others at `base`.
+struct Coordinates {
+  Coordinates(const FreeMask& free, const ParamVector& base);
+
+  Eigen::Index size() const { return static_cast<Eigen::Index>(index.size()); }
+  Eigen::VectorXd start() const;
+  ParamVector to_p(const Eigen::VectorXd& z) const;
+  Eigen::MatrixXd jacobian() const;  // ∂p/∂z (kParams × size)
+
+  std::vector<int> index;
+  ParamVector base;
+};
+
+struct StageResult {
+  ParamVector p = ParamVector::Zero();
+  PassResult pass;  // at p
+  int iterations = 0;
+  bool converged = false;
+  const char* message = "";  // the solver's
+  bool stopped = false;      // the budget ran out or the fit was cancelled: the fit ends here
+};
+
+// Levenberg–Marquardt from c.base over c's slots, with passes of `pass_settings` on `window`. A
+// trial whose model is not finite or not stable over `range` (widened by its own pass) is a
+// failed step.
+StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c,
+                      const PassSettings& pass_settings, int max_iterations, Budget& budget,
+                      const TbarRange& range = {});
+
+// Degrees of freedom left in a channel of n samples with p parameters acting on it.
+inline double dof(std::size_t n, std::size_t p) {
+  return std::max(1.0, static_cast<double>(n) - static_cast<double>(p));
+}
+
+// The free slots acting on x and on T̄ (the degrees of freedom each channel's residuals lost).
+std::array<std::size_t, 2> parameters_per_channel(const FreeMask& free);
+
+// The floor of a channel's (0 x, 1 T̄) noise variance: a noise-free record must not give
+// infinite weights.
+double variance_floor(std::span<const WindowSample> window, int channel);
+
+}  // namespace scp::refine

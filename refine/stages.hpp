@@ -1,0 +1,66 @@
+#pragma once
+// The stages of the fit (refine/fit.cpp), each a function of the context and the fit so far
+// (refine/fit_state.hpp) that can run and be tested on its own. A stage returns
+// StopReason::none to hand on, or why the fit ends here. The delay's and the scale's searches
+// have files of their own (refine/input_delay.hpp, refine/scale_search.hpp).
+
+#include <array>
+#include <span>
+
+#include "refine/fit_state.hpp"
+#include "refine/input_delay.hpp"
+#include "refine/scale_search.hpp"
+
+namespace scp::refine {
+
+// A window the fit can use (at least 3 samples, finite, t strictly increasing), or why not.
+StopReason check_window(std::span<const WindowSample> window);
+
+// The start: θ from `theta_start` where usable, the initial state from the first sample (at
+// rest). A thermal start that is not finite and positive comes from the data (a regression of
+// dT̄/dt on T̄ and V²); a mechanical one from a default shape whose static gain fits the data,
+// for the scale search to place.
+ParamVector start_point(std::span<const WindowSample> window, const Vector6& theta_start,
+                        const std::array<bool, kThetaSize>& known);
+
+// The thermal block's slots (θ5, θ6 unless known, T̄0) and its passes (T̄ alone: the thermal block
+// does not see x).
+FreeMask thermal_slots(const std::array<bool, kThetaSize>& known);
+PassSettings thermal_pass_settings();
+
+// The mechanical block's slots: θ1..θ4 unless known, x0, ẋ0.
+FreeMask mechanical_slots(const std::array<bool, kThetaSize>& known);
+
+// (a) θ5, θ6, T̄0 on T̄ alone; sets the noise variance of T̄ and the model's T̄ range.
+StopReason fit_thermal(FitContext& ctx, FitState& state);
+
+// (c) θ1..θ4, x0, ẋ0 on x, with T̄ simulated from the thermal fit; sets x's noise variance.
+StopReason fit_mechanical(FitContext& ctx, FitState& state);
+
+// The passes of the joint stage and of the covariance at its solution: weights 1/σ̂², and with
+// FitSettings::sample_timing_jitter the samples' timing variance, its reference trajectory
+// (state.p) and, once the variance has been estimated, the robust weights.
+PassSettings joint_pass_settings(const FitSettings& settings, const FitState& state);
+
+// (d) every free slot on x and T̄ weighted by 1/σ̂², σ̂² re-estimated from the residuals until it
+// settles (with the samples' timing jitter, by Fisher scoring together with its variance).
+// StopReason::model_not_finite when its solution cannot be simulated.
+StopReason fit_joint(FitContext& ctx, FitState& state);
+
+// The covariance at the joint solution, written into `result` (covariance, covariance_white,
+// sigma, sigma_white, the batch-means check, hac_lags, outliers, residual_rms, noise_sigma):
+// one pass at the solution with the final σ̂ gives JᵀWJ and the score's long-run covariance
+// (refine/covariance.hpp), Newey–West's, checked by batch means; an estimated delay's σ is added.
+struct CovarianceOutcome {
+  StopReason stop = StopReason::none;  // cancelled during its passes
+  bool definite = false;               // JᵀWJ and the sandwich were positive definite
+  TbarRange model_range;               // the model's T̄ over the window at the solution
+};
+CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, FitResult& result);
+
+// The verdict on the solution: the first check it fails (model_unstable, fast_pole_unresolved,
+// covariance_singular, input_delay_at_limit), or StopReason::none.
+StopReason verdict(const FitContext& ctx, const FitState& state,
+                   const CovarianceOutcome& covariance);
+
+}  // namespace scp::refine

@@ -1,0 +1,191 @@
+// The parts the fit's stages share (refine/parameters.hpp, stop_reason.hpp, budget.hpp,
+// stage.hpp, golden_section.hpp), each on inputs whose answer is known.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <iterator>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "refine/budget.hpp"
+#include "refine/golden_section.hpp"
+#include "refine/parameters.hpp"
+#include "refine/stage.hpp"
+#include "refine/stop_reason.hpp"
+#include "tests/refine/record.hpp"
+
+namespace scp::refine {
+namespace {
+
+TEST(Parameters, TheSlotsFollowThePapersTheta) {
+  // θ = [b/m, α1/m, k/m, α2/m, λ/Cth, 1/(R·Cth)] (estimator/model.hpp, eq. (7)).
+  const auto params = test::paper_actuator();
+  const Vector6 theta = test::theta_of(params);
+  EXPECT_DOUBLE_EQ(theta[kDamping], params.b / params.m);
+  EXPECT_DOUBLE_EQ(theta[kDampingSlope], params.alpha1 / params.m);
+  EXPECT_DOUBLE_EQ(theta[kStiffness], params.k / params.m);
+  EXPECT_DOUBLE_EQ(theta[kThermalForce], params.alpha2 / params.m);
+  EXPECT_DOUBLE_EQ(theta[kCooling], params.lambda / params.Cth);
+  EXPECT_DOUBLE_EQ(theta[kHeating], 1.0 / (params.R * params.Cth));
+  // Every slot belongs to exactly one of θ's blocks or the initial state.
+  std::set<int> slots(kMechanicalTheta.begin(), kMechanicalTheta.end());
+  slots.insert(kThermalTheta.begin(), kThermalTheta.end());
+  slots.insert({kX0, kXdot0, kTbar0});
+  EXPECT_EQ(slots.size(), static_cast<std::size_t>(kParams));
+  EXPECT_EQ(*slots.rbegin(), kParams - 1);
+}
+
+TEST(Parameters, AVectorSplitsBackIntoThetaAndTheInitialState) {
+  Vector6 theta;
+  theta << 1, 2, 3, 4, 5, 6;
+  const Eigen::Vector3d initial(7, 8, 9);
+  const ParamVector p = param_vector(theta, initial);
+  EXPECT_EQ(theta_of(p), theta);
+  EXPECT_EQ(initial_state_of(p), initial);
+  EXPECT_EQ(p[kX0], 7);
+  EXPECT_EQ(p[kTbar0], 9);
+}
+
+TEST(Parameters, FreeSlotsAndTheChannelsTheyActOn) {
+  std::array<bool, kThetaSize> known{};
+  known[kStiffness] = known[kHeating] = true;
+  const FreeMask free = free_slots(known);
+  for (int i = 0; i < kParams; ++i) EXPECT_EQ(free[i], i != kStiffness && i != kHeating) << i;
+  // T̄ sees θ5, θ6 and T̄0 only (the thermal block does not see x); x sees every slot.
+  const std::array<std::size_t, 2> per_channel = parameters_per_channel(free);
+  EXPECT_EQ(per_channel[0], 7u);
+  EXPECT_EQ(per_channel[1], 2u);  // θ5 and T̄0: θ6 is known
+  for (int i = 0; i < kParams; ++i)
+    EXPECT_EQ(acts_on_tbar(i), i == kCooling || i == kHeating || i == kTbar0) << i;
+}
+
+TEST(StopReasons, EachHasItsOwnTextAndNoneHasNone) {
+  EXPECT_STREQ(to_text(StopReason::none), "");
+  std::set<std::string> texts;
+  const StopReason all[] = {StopReason::window_too_short,
+                            StopReason::window_not_finite,
+                            StopReason::window_times_not_increasing,
+                            StopReason::start_not_finite,
+                            StopReason::cancelled,
+                            StopReason::evaluation_budget_spent,
+                            StopReason::work_budget_spent,
+                            StopReason::input_delay_not_estimated,
+                            StopReason::model_not_finite,
+                            StopReason::model_unstable,
+                            StopReason::fast_pole_unresolved,
+                            StopReason::covariance_singular,
+                            StopReason::input_delay_at_limit};
+  for (const StopReason r : all) {
+    EXPECT_GT(std::string(to_text(r)).size(), 5u);
+    texts.insert(to_text(r));
+  }
+  EXPECT_EQ(texts.size(), std::size(all));
+  // The texts clients and tests read (docs/protocol.md, tests/refine/test_robust.cpp).
+  EXPECT_STREQ(to_text(StopReason::cancelled), "cancelled");
+  EXPECT_NE(std::string(to_text(StopReason::evaluation_budget_spent)).find("budget"),
+            std::string::npos);
+}
+
+TEST(Coordinates, MapTheFreeSlotsInOrderAndHoldTheRest) {
+  ParamVector base;
+  base << 10, 11, 12, 13, 14, 15, 16, 17, 18;
+  FreeMask free{};
+  free[kTbar0] = free[kDampingSlope] = free[kCooling] = true;
+  const Coordinates c(free, base);
+  EXPECT_EQ(c.index, (std::vector<int>{kDampingSlope, kCooling, kTbar0}));
+  EXPECT_EQ(c.start(), Eigen::Vector3d(11, 14, 18));
+  const ParamVector p = c.to_p(Eigen::Vector3d(-1, -2, -3));
+  ParamVector expected = base;
+  expected[kDampingSlope] = -1;
+  expected[kCooling] = -2;
+  expected[kTbar0] = -3;
+  EXPECT_EQ(p, expected);
+  // ∂p/∂z: one 1 per column, in its slot's row.
+  const Eigen::MatrixXd t = c.jacobian();
+  ASSERT_EQ(t.rows(), kParams);
+  ASSERT_EQ(t.cols(), 3);
+  EXPECT_EQ(t.sum(), 3.0);
+  for (Eigen::Index j = 0; j < 3; ++j) EXPECT_EQ(t(c.index[j], j), 1.0);
+}
+
+TEST(AcceptedModels, DampedAndStableOverTheTbarRange) {
+  ParamVector p = param_vector(test::theta_of(test::paper_actuator()), Eigen::Vector3d::Zero());
+  const TbarRange range{0.0, 100.0};
+  EXPECT_TRUE(stable_over(p, range));
+  // θ1 + θ2·T̄ negative at the range's hot end only.
+  p[kDampingSlope] = -p[kDamping] / 50.0;
+  EXPECT_FALSE(damped_over(p, range));
+  EXPECT_TRUE(damped_over(p, {0.0, 40.0}));
+  p = param_vector(test::theta_of(test::paper_actuator()), Eigen::Vector3d::Zero());
+  p[kStiffness] = 0.0;
+  EXPECT_FALSE(stable_over(p, range));
+  p[kStiffness] = 1.0;
+  p[kCooling] = -1e-3;
+  EXPECT_FALSE(stable_over(p, range));
+  // A pass that reached further widens the range.
+  PassResult pass;
+  pass.tbar_min = -5.0;
+  pass.tbar_max = 120.0;
+  const TbarRange w = widened(range, pass);
+  EXPECT_EQ(w.lo, -5.0);
+  EXPECT_EQ(w.hi, 120.0);
+}
+
+TEST(Budget, CountsPassesAndStopsWhenSpentOrCancelled) {
+  const auto& w = test::cached_paper_record(2.0);
+  const ParamVector p =
+      param_vector(test::theta_of(test::paper_actuator()), Eigen::Vector3d::Zero());
+  std::atomic<bool> cancel{false};
+  FitSettings settings;
+  settings.max_evaluations = 2;
+  settings.cancel = &cancel;
+  Budget budget(w, settings);
+  EXPECT_DOUBLE_EQ(budget.mean_interval(), 1e-3);
+  EXPECT_EQ(budget.stop(), StopReason::none);
+  const PassResult first = budget.pass(w, p, {});
+  EXPECT_TRUE(first.finite);
+  EXPECT_EQ(budget.evaluations(), 1);
+  EXPECT_EQ(budget.stop(), StopReason::none);
+  // The input delay reaches the pass: the same θ fits the record worse with the voltage shifted.
+  budget.set_input_delay(0.5e-3);
+  const PassResult shifted = budget.pass(w, p, {});
+  EXPECT_GT(shifted.cost, first.cost);
+  EXPECT_EQ(budget.stop(), StopReason::evaluation_budget_spent);
+  cancel = true;
+  EXPECT_EQ(budget.stop(), StopReason::cancelled);
+}
+
+TEST(Budget, StopsAPassWhoseModelIsStifferThanTheSamplingShows) {
+  const auto& w = test::cached_paper_record(2.0);
+  Vector6 theta = test::theta_of(test::paper_actuator());
+  theta[kDamping] *= 1e6;  // a fast pole ~1e9 rad/s: e⁻¹⁰⁰⁰⁰⁰⁰ per sample
+  FitSettings settings;
+  Budget budget(w, settings);
+  const PassResult r = budget.pass(w, param_vector(theta, Eigen::Vector3d::Zero()), {});
+  EXPECT_FALSE(r.finite);
+  EXPECT_TRUE(r.too_stiff);
+}
+
+TEST(GoldenSection, FindsAParabolasVertexAndCountsItsSteps) {
+  int evaluations = 0, steps = 0;
+  const auto cost = [&](double x) {
+    ++evaluations;
+    return (x - 0.3) * (x - 0.3) + 2.0;
+  };
+  const GoldenResult r = golden_section(
+      -1.0, 2.0, 1e-6, 200, cost, [] { return false; }, steps);
+  EXPECT_NEAR(r.x, 0.3, 1e-6);
+  EXPECT_NEAR(r.cost, 2.0, 1e-12);
+  EXPECT_EQ(evaluations, steps + 2);
+  // Each step shrinks the bracket by the golden ratio: 3 → 1e-6 takes ⌈ln(3e6)/ln φ⌉ steps.
+  EXPECT_EQ(steps, static_cast<int>(std::ceil(std::log(3e6) / std::log(0.5 * (1 + std::sqrt(5))))));
+  int stopped_steps = 0;
+  golden_section(
+      -1.0, 2.0, 1e-6, 200, cost, [&] { return stopped_steps >= 5; }, stopped_steps);
+  EXPECT_EQ(stopped_steps, 5);
+}
+
+}  // namespace
+}  // namespace scp::refine
