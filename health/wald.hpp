@@ -1,0 +1,56 @@
+#pragma once
+// The sure detector's test: one refined window's θ̂ against a reference (the baseline, or the
+// trend-extrapolated reference of health/trend.hpp), a Wald χ² with both covariances per block
+// (mechanical θ1..θ4, thermal θ5, θ6) and a z per parameter:
+//
+//   d = θ̂ − θ_ref,  W_b = d_bᵀ (C_b + C_ref,b)⁻¹ d_b ~ χ²(p_b),  z_i = d_i / √(C_ii + C_ref,ii),
+//
+// p_b the block's free parameters (a parameter with zero variance in both was held known). The
+// two estimates must be independent (windows that do not overlap, or a baseline from other data).
+
+#include <array>
+
+#include "health/types.hpp"
+
+namespace scp::health {
+
+struct ParameterShift {
+  bool tested = false;    // free in both estimates
+  double delta = 0.0;     // θ̂_i − θ_ref,i
+  double sigma = 0.0;     // √(C_ii + C_ref,ii)
+  double z = 0.0;         // delta / sigma
+  double relative = 0.0;  // delta / |θ_ref,i| (0 when θ_ref,i = 0)
+  bool moved = false;     // named: see WaldThresholds
+};
+
+struct BlockWald {
+  int dof = 0;
+  double statistic = 0.0;
+  double threshold = 0.0;
+  bool significant = false;  // statistic > threshold (a non-finite statistic counts)
+};
+
+// A parameter is named as moved when its block is significant, its change is at least
+// min_relative_change of |θ_ref,i| (a change too small to matter physically, or within the
+// model's own misfit on a real bench, is never named), and either |z_i| ≥ name_z or it has the
+// largest |z| of its block (a block can be significant along a correlated direction with no
+// single parameter beyond name_z: the likeliest one is named).
+struct WaldThresholds {
+  std::array<double, kBlocks> block{};
+  double name_z = 2.0;
+  double min_relative_change = 0.0;
+};
+
+struct WaldResult {
+  std::array<BlockWald, kBlocks> blocks{};
+  std::array<ParameterShift, kParams> parameters{};
+  // Some parameter is named.
+  bool alarm() const noexcept;
+  // The named parameter with the largest |z|, −1 if none.
+  int first_named() const noexcept;
+};
+
+WaldResult wald_test(const Vector6& theta, const Matrix6& covariance, const Vector6& reference,
+                     const Matrix6& reference_covariance, const WaldThresholds& thresholds);
+
+}  // namespace scp::health

@@ -1,0 +1,2 @@
+// The health monitor (placeholder until its tests land in the next commit).
+#include <gtest/gtest.h>
