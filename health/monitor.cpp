@@ -19,6 +19,8 @@ constexpr double kSecondsPerDay = 86400.0;
 constexpr double kDetectors = 3.0;
 // Within a significant block, parameters beyond this many σ are named (wald.hpp).
 constexpr double kNameZ = 2.0;
+// The trend the sure detector tests against must span this many window lengths of data.
+constexpr double kSureMinSpanWindows = 3.0;
 
 bool usable(const WindowEstimate& w) {
   return std::isfinite(w.t_begin) && std::isfinite(w.t_end) && w.t_end > w.t_begin &&
@@ -93,27 +95,30 @@ HealthMonitor::HealthMonitor(const HealthSettings& settings, const WindowEstimat
       accumulator_(settings.block_s) {
   report_.baseline_indicators =
       derive_indicators(baseline.theta, baseline.covariance, settings.heat_capacity_j_per_c);
-  reference_.valid = true;
+  // The fast detector waits for a live window: against the baseline alone it cannot tell a
+  // plant that drifts from one that has stepped (docs/health.md).
   reference_.theta = baseline.theta;
   reference_.covariance = baseline.covariance;
-  reference_.generation = 1;
   report_.since = baseline.t_end;
 }
 
 HealthMonitor::Prediction HealthMonitor::predict(double t, double data_before) const {
   std::vector<WindowEstimate> before;
+  const double oldest = data_before - settings_.reference_span_s;
   for (const auto& w : history_)
-    if (w.t_end <= data_before) before.push_back(w);
+    if (w.t_end <= data_before && w.t_begin >= oldest) before.push_back(w);
   Prediction p;
   if (before.empty()) {
-    if (!first_segment_) return p;
-    // Nothing live yet that the tested data do not share: the baseline is the reference.
+    // Only the first window of all is tested against the baseline (a change while nothing ran);
+    // after it, a window is tested only against live windows that share none of its data.
+    if (!first_segment_ || tested_against_baseline_) return p;
     p.valid = true;
     p.fit.valid = true;
     p.fit.windows = 1;
     p.fit.t_eval = t;
     p.fit.level = baseline_.theta;
     p.fit.level_covariance = baseline_.covariance;
+    p.from_baseline = true;
     return p;
   }
   const bool slope = before.back().midpoint() - before.front().midpoint() >=
@@ -151,12 +156,14 @@ void HealthMonitor::add_window(const WindowEstimate& w) {
   report_.baseline_deviation =
       wald_test(w.theta, w.covariance, baseline_.theta, baseline_.covariance, baseline_th);
   if (w.t_begin >= segment_start_) test_against_reference(w);
+  tested_against_baseline_ = true;
   // A window that straddles a change (the one just found or an earlier one) leaves the trends.
   if (w.t_begin >= segment_start_) {
     history_.push_back(w);
     const double oldest = w.t_end - settings_.trend_span_s;
     std::erase_if(history_, [oldest](const WindowEstimate& h) { return h.t_begin < oldest; });
-    update_drift(w);
+    if (pending_.active && w.t_begin >= pending_.change.onset) confirm_pending(w);
+    if (w.t_begin >= segment_start_) update_drift(w);
   }
   last_window_length_ = w.length();
   update_reference(w.t_end);
@@ -164,6 +171,7 @@ void HealthMonitor::add_window(const WindowEstimate& w) {
 }
 
 void HealthMonitor::test_against_reference(const WindowEstimate& w) {
+  if (pending_.active) return;
   const Prediction p = predict(w.midpoint(), w.t_begin);
   report_.reference_tested = p.valid;
   if (!p.valid) return;
@@ -174,14 +182,30 @@ void HealthMonitor::test_against_reference(const WindowEstimate& w) {
   th.min_relative_change = settings_.min_relative_change;
   const WaldResult r = wald_test(w.theta, w.covariance, p.fit.level, p.fit.level_covariance, th);
   report_.reference_deviation = r;
-  if (r.alarm()) {
+  // A level without a slope cannot tell a drift from a step: only the baseline (the first
+  // window, a change while nothing ran) or a trend with its slope may raise `changed`. And a
+  // short trend's extrapolation moves with each new window (its newest windows weigh most), so
+  // its tests renew faster than the window's β says: measured on simulated steady plants, the
+  // rate matched the design once the trend spanned 3 window lengths (1.6× at 2, 6× at any).
+  const bool may_alarm =
+      (p.fit.with_slope && p.fit.data_span >= kSureMinSpanWindows * w.length()) || p.from_baseline;
+  if (may_alarm && r.alarm()) {
     ChangePoint c;
     c.detector = Detector::sure;
     c.detected_at = w.t_end;
     c.parameter = r.first_named();
     c.parameters = r.parameters;
     c.onset = window_onset_estimate(w, c.parameter, r.parameters[c.parameter].delta);
-    raise_change(c);
+    if (p.from_baseline) {
+      raise_change(c);  // a change while nothing ran: nothing to tell it from a drift
+      return;
+    }
+    // A step or a drift that started late? Decided once a window lies after the onset
+    // (monitor_confirm.cpp).
+    pending_.active = true;
+    pending_.change = c;
+    pending_.reference = p.fit;
+    pending_.reference_covariance = p.fit.level_covariance;
     return;
   }
   have_last_test_ = true;
@@ -242,20 +266,38 @@ void HealthMonitor::update_drift(const WindowEstimate& w) {
   }
   // Re-armed once the slopes have been within bounds for a window length: a slope test that
   // has just crossed its threshold by chance tends to cross it again before its data renew.
+  // Clear means every slope's estimate is within drift_per_hour, not merely insignificant: a
+  // short trend after a new segment is too noisy to be significant while the drift goes on.
+  bool clear = true;
+  for (const auto& p : d.parameters)
+    clear = clear && !(p.tested && std::abs(p.relative_per_hour) >= settings_.drift_per_hour);
   if (!drifting) {
-    if (!(drift_clear_since_ <= w.t_end)) drift_clear_since_ = w.t_end;
-    if (w.t_end - drift_clear_since_ >= w.length()) drift_armed_ = true;
+    if (!clear) {
+      drift_clear_since_ = std::numeric_limits<double>::quiet_NaN();
+    } else {
+      if (!(drift_clear_since_ <= w.t_end)) drift_clear_since_ = w.t_end;
+      if (w.t_end - drift_clear_since_ >= w.length()) drift_armed_ = true;
+    }
     return;
   }
   drift_clear_since_ = std::numeric_limits<double>::quiet_NaN();
   if (!drift_armed_) return;
+  raise_drift(w.t_end, d.parameters, history_.front().t_begin, -1);
+}
+
+void HealthMonitor::raise_drift(double t, const std::array<ParameterTrend, kParams>& trend,
+                                double onset, int parameter) {
   drift_armed_ = false;
+  drift_clear_since_ = std::numeric_limits<double>::quiet_NaN();
   ++report_.drifts;
   HealthEvent e;
   e.kind = EventKind::drift;
-  e.t = w.t_end;
-  e.trend = d.parameters;
-  if (report_.state == State::ok) set_state(State::drift, w.t_end);
+  e.t = t;
+  e.trend = trend;
+  e.change.onset = onset;
+  e.change.detected_at = t;
+  e.change.parameter = parameter;
+  if (report_.state == State::ok) set_state(State::drift, t);
   e.state = report_.state;
   events_.push_back(e);
 }
@@ -271,15 +313,20 @@ void HealthMonitor::raise_change(const ChangePoint& change) {
   e.state = report_.state;
   e.change = change;
   events_.push_back(e);
-  // A new segment: the trends and the references start again after the onset.
-  segment_start_ = change.onset;
+  start_segment(change.onset, change.detected_at);
+}
+
+// A new segment: the trends and the references start again after the onset.
+void HealthMonitor::start_segment(double onset, double t) {
+  segment_start_ = onset;
   first_segment_ = false;
+  pending_.active = false;
   std::erase_if(history_, [&](const WindowEstimate& h) { return h.t_begin < segment_start_; });
   have_last_test_ = false;
   for (auto& c : cusums_) c.reset();
   accumulator_.restart();
   recent_blocks_.clear();
-  update_reference(change.detected_at);
+  update_reference(t);
 }
 
 void HealthMonitor::set_state(State state, double t) {

@@ -13,13 +13,21 @@
 // - drift: each parameter's slope over the windows since the last change (trend.hpp).
 //
 // A slow drift against a fixed baseline eventually exceeds any χ² threshold, so `changed` is
-// never tested against the fixed baseline: the reference of both the fast and the sure detector
-// is the trend of the windows since the last change, extrapolated to the time tested, from
-// windows that share no data with what is tested (a level alone until their midpoints span
-// trend_min_span_s; the baseline until the first window has left the data tested). A drift
-// then moves the reference with it and raises `drift` (its slope), not `changed`; a step
-// departs from the extrapolation and raises `changed`. The deviation from the baseline itself is
-// published with every window (how far the actuator is from its healthy self), never an alarm.
+// tested against the fixed baseline only once, on the first window (a change while nothing ran):
+// after it the reference of both the fast and the sure detector is the trend of the live windows
+// since the last change, extrapolated to the time tested, from windows that share no data with
+// what is tested (with a slope as soon as two windows' midpoints span trend_min_span_s, its
+// uncertainty carried into the tests). A drift then moves the reference with it and raises
+// `drift` (its slope), not `changed`; a step departs from the extrapolation and raises
+// `changed`. The deviation from the baseline itself is published with every window (how far
+// the actuator is from its healthy self), never an alarm.
+//
+// The sure detector's alarm is held until a window lies entirely after its onset: a window's θ̂
+// departs from the trend linearly across a step (the share of its data after it) but
+// quadratically after a drift starts, and the two shapes fitted to the windows since then decide
+// between `changed` and `drift` (a drift that starts late is not a step). The fast detector
+// decides at once from its blocks: a step leaves a constant residual score, a drift that the
+// reference has not caught up with a growing one.
 //
 // After a change at onset τ the windows that straddle τ leave the trends, and the detectors wait
 // for the first window entirely after τ (one window length) to be their new reference. `changed`
@@ -152,6 +160,7 @@ class HealthMonitor {
  private:
   struct Prediction {
     bool valid = false;
+    bool from_baseline = false;
     TrendFit fit;
   };
   Prediction predict(double t, double data_before) const;
@@ -160,7 +169,12 @@ class HealthMonitor {
   void update_reference(double t);
   void design_cusums();
   void fast_alarm(const ScoreBlock& block);
+  bool late_drift(int parameter, double onset);
   void raise_change(const ChangePoint& change);
+  void raise_drift(double t, const std::array<ParameterTrend, kParams>& trend, double onset,
+                   int parameter);
+  void start_segment(double onset, double t);
+  void confirm_pending(const WindowEstimate& w);
   void set_state(State state, double t);
   double window_onset_estimate(const WindowEstimate& w, int parameter, double delta) const;
   double sure_block_threshold(int block, const WindowEstimate& w, const Matrix6& c_ref) const;
@@ -171,6 +185,7 @@ class HealthMonitor {
   std::vector<WindowEstimate> history_;  // windows of the current segment, in time order
   double segment_start_;
   bool first_segment_ = true;
+  bool tested_against_baseline_ = false;
   double last_window_end_;
   double last_window_length_ = 0.0;
   bool have_last_test_ = false;
@@ -178,6 +193,15 @@ class HealthMonitor {
   Vector6 last_test_delta_ = Vector6::Zero();
   bool drift_armed_ = true;
   double drift_clear_since_ = 0.0;  // NaN while drifting
+
+  // The sure detector's alarm waiting for a window after its onset: a step or a late drift?
+  struct PendingChange {
+    bool active = false;
+    ChangePoint change;
+    TrendFit reference;  // the trend it departed from, frozen
+    Matrix6 reference_covariance = Matrix6::Zero();
+  };
+  PendingChange pending_;
 
   Reference reference_;
   TrendFit reference_fit_;  // reference_at() extrapolates its slope

@@ -12,6 +12,11 @@ namespace {
 // Blocks kept for the isolation since an onset: the CUSUM's change point lies within the last
 // few design delays, far less than this.
 constexpr double kRecentBlocksSeconds = 900.0;
+// How far before the CUSUM's change point a drift's start is searched.
+constexpr double kRampSearchSeconds = 600.0;
+// A ramp must fit better than a step by this much (χ²₁ at 0.999): right after a step the few
+// blocks since it fit both shapes alike, and the step is the fast detector's design.
+constexpr double kRampMargin = 10.83;
 
 }  // namespace
 
@@ -24,10 +29,12 @@ Reference HealthMonitor::reference_at(double t) const {
 
 // The reference for the residuals from time t on: the trend of the windows that ended one window
 // length before t (a window since then may already straddle a change the CUSUM has not yet
-// found); right after a change, any window entirely after it.
+// found); while there are fewer than two of those (the first window length of a segment), the
+// trend of every window so far. None before the segment's first live window.
 void HealthMonitor::update_reference(double t) {
   Prediction p = predict(t, t - last_window_length_);
-  if (!p.valid && !first_segment_) p = predict(t, t);
+  if (!p.valid || p.fit.windows < 2) p = predict(t, t);
+  if (history_.empty()) p.valid = false;
   ++reference_.generation;
   reference_.valid = p.valid;
   reference_fit_ = p.fit;
@@ -92,6 +99,54 @@ void HealthMonitor::add_block(const ScoreBlock& block) {
   if (alarm) fast_alarm(block);
 }
 
+// A drift that starts late makes the reference lag behind it until the trend catches up: the
+// residual grows linearly where a step's is constant. Each block's single-parameter estimate
+// δ_b = s_b/I_b (weight I_b) over the recent blocks is fitted as a step, δ = ∆·[t ≥ s], and as a
+// ramp, δ = r·(t − s)⁺, over a grid of s; a ramp whose weighted residual sum is clearly smaller
+// raises `drift` from s and starts a new segment there.
+bool HealthMonitor::late_drift(int parameter, double onset) {
+  struct Fit {
+    double sse = 1e300, onset = 0.0, amplitude = 0.0;
+  } step, ramp;
+  if (recent_blocks_.size() < 3) return false;
+  double total = 0.0;
+  for (const auto& b : recent_blocks_) {
+    const double info = b.information(parameter, parameter);
+    if (info > 0.0) total += b.score[parameter] * b.score[parameter] / info;
+  }
+  const double first = std::max(recent_blocks_.front().t_begin, onset - kRampSearchSeconds);
+  for (double s = first; s <= onset; s += settings_.block_s) {
+    double gg[2] = {0, 0}, gd[2] = {0, 0};
+    for (const auto& b : recent_blocks_) {
+      const double info = b.information(parameter, parameter);
+      const double t = 0.5 * (b.t_begin + b.t_end);
+      const double g[2] = {t >= s ? 1.0 : 0.0, std::max(0.0, t - s)};
+      for (int k = 0; k < 2; ++k) {
+        gg[k] += g[k] * g[k] * info;
+        gd[k] += g[k] * b.score[parameter];  // Σ g·I·δ = Σ g·s
+      }
+    }
+    for (int k = 0; k < 2; ++k) {
+      if (!(gg[k] > 0.0)) continue;
+      const double sse = total - gd[k] * gd[k] / gg[k];
+      Fit& f = k == 0 ? step : ramp;
+      if (sse < f.sse) f = {sse, s, gd[k] / gg[k]};
+    }
+  }
+  if (!(step.sse - ramp.sse > kRampMargin)) return false;
+  std::array<ParameterTrend, kParams> trend{};
+  ParameterTrend& p = trend[parameter];
+  const double theta = std::abs(reference_at(ramp.onset).theta[parameter]);
+  p.tested = true;
+  p.per_hour = ramp.amplitude * 3600.0;
+  p.relative_per_hour = theta > 0.0 ? p.per_hour / theta : 0.0;
+  p.drifting = true;
+  const double t = recent_blocks_.back().t_end;
+  if (drift_armed_) raise_drift(t, trend, ramp.onset, parameter);
+  start_segment(ramp.onset, t);
+  return true;
+}
+
 void HealthMonitor::fast_alarm(const ScoreBlock& block) {
   int channel = 0;
   for (int i = 1; i < kParams; ++i)
@@ -107,6 +162,7 @@ void HealthMonitor::fast_alarm(const ScoreBlock& block) {
     for (auto& c : cusums_) c.reset();
     return;
   }
+  if (late_drift(iso.parameter, onset)) return;
   ChangePoint c;
   c.detector = Detector::fast;
   c.onset = onset;

@@ -25,6 +25,7 @@ std::string validate(const HealthSettings& s) {
       {"design_change", s.design_change, 1e-6, 10.0},
       {"block_s", s.block_s, 1e-3, 600.0},
       {"trend_span_s", s.trend_span_s, 60.0, 1e6},
+      {"reference_span_s", s.reference_span_s, 60.0, 1e6},
       {"trend_min_span_s", s.trend_min_span_s, 0.0, 1e6},
       {"heat_capacity_j_per_c", s.heat_capacity_j_per_c, 0.0, 1e9},
   };

@@ -19,11 +19,18 @@ struct HealthSettings {
   double design_change = 0.10;
   // The fast detector's block: samples are summed over this long before the CUSUM sees them.
   double block_s = 1.0;
-  // Trends use the windows of the last trend_span_s (since the last change at most).
+  // The drift test's trends use the windows of the last trend_span_s (since the last change at
+  // most): long, for a precise slope.
   double trend_span_s = 3600.0;
+  // The reference the fast and sure detectors test against extrapolates the trend of the
+  // windows of the last reference_span_s: short, so that a drift that starts late is followed
+  // within minutes instead of departing from a slope fitted mostly before it started. At least
+  // three window lengths, which the sure detector needs (monitor.cpp).
+  double reference_span_s = 1200.0;
   // The reference extrapolates a slope once its windows' midpoints span this long (a level
-  // alone before).
-  double trend_min_span_s = 120.0;
+  // alone before). 0: as soon as there are two windows (the slope's large uncertainty then is
+  // carried into the tests, which is what keeps an early drift from reading as a step).
+  double trend_min_span_s = 0.0;
   // The actuator's heat capacity Cth in J/°C when known (R and λ are then published); 0 unknown.
   double heat_capacity_j_per_c = 0.0;
 };

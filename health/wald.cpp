@@ -9,7 +9,7 @@ namespace scp::health {
 namespace {
 
 void test_block(int b, const Vector6& d, const Matrix6& c, const ParameterMask& free,
-                BlockWald& out) {
+                BlockWald& out, std::array<ParameterShift, kParams>& parameters) {
   int idx[kParams], m = 0;
   for (int i = kBlockFirst[b]; i < kBlockEnd[b]; ++i)
     if (free[i]) idx[m++] = i;
@@ -25,28 +25,41 @@ void test_block(int b, const Vector6& d, const Matrix6& c, const ParameterMask& 
   if (db.allFinite() && cb.allFinite()) {
     const Eigen::LDLT<Eigen::MatrixXd> ldlt(cb);
     if (ldlt.info() == Eigen::Success && ldlt.isPositive()) {
-      const double v = db.dot(ldlt.solve(db));
+      const Eigen::VectorXd score = ldlt.solve(db);
+      const Eigen::MatrixXd information = ldlt.solve(Eigen::MatrixXd::Identity(m, m));
+      const double v = db.dot(score);
       if (std::isfinite(v) && v >= 0.0) stat = v;
+      for (int i = 0; i < m; ++i) {
+        ParameterShift& p = parameters[idx[i]];
+        const double info = information(i, i);
+        if (!(info > 0.0)) continue;
+        p.alone = score[i] / info;
+        p.alone_sigma = 1.0 / std::sqrt(info);
+        p.glr = score[i] * score[i] / info;
+      }
     }
   }
   out.statistic = stat;
   out.significant = !(stat <= out.threshold);
 }
 
-void name_moved(const WaldThresholds& th, WaldResult& r) {
+void name_moved(const Vector6& reference, const WaldThresholds& th, WaldResult& r) {
   for (int b = 0; b < kBlocks; ++b) {
     if (!r.blocks[b].significant) continue;
-    int largest = -1;
+    int first = -1;
     for (int i = kBlockFirst[b]; i < kBlockEnd[b]; ++i) {
       const ParameterShift& p = r.parameters[i];
-      if (!p.tested || std::abs(p.relative) < th.min_relative_change) continue;
-      if (largest < 0 || std::abs(p.z) > std::abs(r.parameters[largest].z)) largest = i;
+      const double alone_relative = reference[i] != 0.0 ? p.alone / std::abs(reference[i]) : 0.0;
+      if (!p.tested || !(std::abs(alone_relative) >= th.min_relative_change)) continue;
+      if (first < 0 || p.glr > r.parameters[first].glr) first = i;
     }
+    if (first < 0) continue;
     for (int i = kBlockFirst[b]; i < kBlockEnd[b]; ++i) {
       ParameterShift& p = r.parameters[i];
-      p.moved = p.tested && std::abs(p.relative) >= th.min_relative_change &&
-                (std::abs(p.z) >= th.name_z || i == largest);
+      p.moved = i == first || (p.tested && std::abs(p.relative) >= th.min_relative_change &&
+                               std::abs(p.z) >= th.name_z);
     }
+    r.first[b] = first;
   }
 }
 
@@ -58,10 +71,9 @@ bool WaldResult::alarm() const noexcept {
 
 int WaldResult::first_named() const noexcept {
   int best = -1;
-  for (int i = 0; i < kParams; ++i)
-    if (parameters[i].moved &&
-        (best < 0 || std::abs(parameters[i].z) > std::abs(parameters[best].z)))
-      best = i;
+  for (int b = 0; b < kBlocks; ++b)
+    if (first[b] >= 0 && (best < 0 || parameters[first[b]].glr > parameters[best].glr))
+      best = first[b];
   return best;
 }
 
@@ -84,9 +96,9 @@ WaldResult wald_test(const Vector6& theta, const Matrix6& covariance, const Vect
   }
   for (int b = 0; b < kBlocks; ++b) {
     r.blocks[b].threshold = thresholds.block[b];
-    test_block(b, d, c, free, r.blocks[b]);
+    test_block(b, d, c, free, r.blocks[b], r.parameters);
   }
-  name_moved(thresholds, r);
+  name_moved(reference, thresholds, r);
   return r;
 }
 

@@ -9,6 +9,7 @@
 // block_s·Q⁻¹: the linearized output-error model ε = J·∆θ + noise.
 
 #include <Eigen/Cholesky>
+#include <Eigen/LU>
 #include <deque>
 #include <functional>
 #include <random>
