@@ -17,6 +17,7 @@ constexpr double kRampSearchSeconds = 600.0;
 // A ramp must fit better than a step by this much (χ²₁ at 0.999): right after a step the few
 // blocks since it fit both shapes alike, and the step is the fast detector's design.
 constexpr double kRampMargin = 10.83;
+constexpr double kRampMinEvidenceSeconds = 20.0;
 
 }  // namespace
 
@@ -108,7 +109,10 @@ bool HealthMonitor::late_drift(int parameter, double onset) {
   struct Fit {
     double sse = 1e300, onset = 0.0, amplitude = 0.0;
   } step, ramp;
-  if (recent_blocks_.size() < 3) return false;
+  // A step alarms within a few blocks of its onset, and over so few any two-parameter shape
+  // fits: only an alarm that took longer to build up can be a drift.
+  if (recent_blocks_.empty() || recent_blocks_.back().t_end - onset < kRampMinEvidenceSeconds)
+    return false;
   double total = 0.0;
   for (const auto& b : recent_blocks_) {
     const double info = b.information(parameter, parameter);
