@@ -112,7 +112,7 @@ TEST(HealthMonitor, TheSureDetectorAloneFindsAMechanicalStep) {
 TEST(HealthMonitor, APlantDriftingFromTheStartIsDriftNotChanged) {
   // b/m +20 %/h from the baseline on (the drifting plant).
   test::RunOptions o;
-  o.duration_s = 3 * 3600.0;
+  o.duration_s = 1.5 * 3600.0;
   const auto theta = [](double t) {
     Vector6 th = test::paper_theta();
     th[0] *= 1.0 + 0.2 * std::max(t, 0.0) / 3600.0;
@@ -135,7 +135,7 @@ TEST(HealthMonitor, ADriftThatStartsLateIsMostlyDrift) {
   int changes = 0, drifts = 0;
   for (std::uint64_t seed = 1; seed <= 4; ++seed) {
     test::RunOptions o;
-    o.duration_s = 2.5 * 3600.0;
+    o.duration_s = 1.5 * 3600.0;
     o.seed = seed;
     const auto theta = [](double t) {
       Vector6 th = test::paper_theta();
