@@ -18,13 +18,13 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <deque>
 #include <random>
 #include <vector>
 
 #include "health/cusum.hpp"
 #include "health/scan_threshold.hpp"
 #include "tests/health/monitor_run.hpp"
+#include "tests/health/moving_window.hpp"
 
 namespace {
 
@@ -64,37 +64,6 @@ void cusum_section(bool quick) {
   }
 }
 
-// Alarms of a moving sum of m white chunks per coordinate, tested every chunk, none for m steps
-// after each alarm (a new reference).
-double moving_window_rate(int dof, int m, double b, long steps, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::normal_distribution<double> n;
-  std::vector<std::deque<double>> chunks(dof);
-  std::vector<double> sums(dof, 0.0);
-  long alarms = 0, dead_until = 0;
-  bool above = false;
-  for (long t = 0; t < steps + m; ++t) {
-    double w = 0.0;
-    for (int c = 0; c < dof; ++c) {
-      const double x = n(rng);
-      chunks[c].push_back(x);
-      sums[c] += x;
-      if (static_cast<int>(chunks[c].size()) > m) {
-        sums[c] -= chunks[c].front();
-        chunks[c].pop_front();
-      }
-      w += sums[c] * sums[c] / m;
-    }
-    if (t < m) continue;
-    if (w > b && !above && t >= dead_until) {
-      ++alarms;
-      dead_until = t + m;
-    }
-    above = w > b;
-  }
-  return static_cast<double>(alarms) / static_cast<double>(steps);
-}
-
 void scan_section(bool quick) {
   std::printf(
       "\n## Repeated tests on overlapping windows (30 chunks per window, tested every chunk)\n");
@@ -104,7 +73,7 @@ void scan_section(bool quick) {
     for (double rate : {1e-4, 1e-5, quick ? 1e-5 : 1e-6}) {
       const double b = chi_square_scan_threshold(rate, dof, 1.0 / 30.0, 1.0);
       const long steps = static_cast<long>(300.0 / rate);
-      const double measured = moving_window_rate(dof, 30, b, steps, 5 + dof);
+      const double measured = test::moving_window_alarm_rate(dof, 30, b, steps, 5 + dof);
       std::printf("| %d | %.0e | %.2f | %.0f | %.3f |\n", dof, rate, b, measured * steps,
                   measured / rate);
       if (quick && rate < 1e-4) break;

@@ -4,12 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <deque>
-#include <random>
-#include <vector>
 
 #include "health/distributions.hpp"
 #include "health/scan_threshold.hpp"
+#include "tests/health/moving_window.hpp"
 
 namespace scp::health {
 namespace {
@@ -34,39 +32,6 @@ TEST(ScanThreshold, NeverMoreThanIndependentTests) {
   EXPECT_NEAR(chi_square_scan_rate(b, 2, 1.0 / 300.0, 10.0) / 1e-7, 1.0, 1e-6);
 }
 
-// Moving sums of m white chunks per coordinate, tested every chunk: β = 1/m, spacing 1. An alarm
-// is counted at an upcrossing, then none for one window (m steps): the monitor re-arms only with
-// a new reference. Without that dead time the count includes the re-crossings within one
-// excursion, which the formula does not count (measured: 1.2-1.8× more at these levels).
-double simulated_rate(int dof, int m, double b, long steps, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::normal_distribution<double> n;
-  std::vector<std::deque<double>> chunks(dof);
-  std::vector<double> sums(dof, 0.0);
-  long crossings = 0, dead_until = 0;
-  bool above = false;
-  for (long t = 0; t < steps + m; ++t) {
-    double w = 0.0;
-    for (int c = 0; c < dof; ++c) {
-      const double x = n(rng);
-      chunks[c].push_back(x);
-      sums[c] += x;
-      if (static_cast<int>(chunks[c].size()) > m) {
-        sums[c] -= chunks[c].front();
-        chunks[c].pop_front();
-      }
-      w += sums[c] * sums[c] / m;
-    }
-    if (t < m) continue;
-    if (w > b && !above && t >= dead_until) {
-      ++crossings;
-      dead_until = t + m;
-    }
-    above = w > b;
-  }
-  return static_cast<double>(crossings) / static_cast<double>(steps);
-}
-
 TEST(ScanThreshold, SimulatedMovingWindowsCrossAtTheDesignedRate) {
   // 30 chunks per window (300 s refitted every 10 s); 4e5 steps at a designed 1/2000 per step:
   // ~200 alarms, a Poisson count within ±14 % at 2σ; the formula is asymptotic in b and was
@@ -74,7 +39,7 @@ TEST(ScanThreshold, SimulatedMovingWindowsCrossAtTheDesignedRate) {
   for (int dof : {1, 2, 4}) {
     const double rate = 1.0 / 2000.0;
     const double b = chi_square_scan_threshold(rate, dof, 1.0 / 30.0, 1.0);
-    const double measured = simulated_rate(dof, 30, b, 400000, 11 + dof);
+    const double measured = test::moving_window_alarm_rate(dof, 30, b, 400000, 11 + dof);
     EXPECT_NEAR(measured / rate, 1.0, 0.3) << "dof " << dof << " b " << b;
   }
 }
