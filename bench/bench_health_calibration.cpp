@@ -37,9 +37,10 @@ void cusum_section(bool quick) {
   std::printf("|---|---|---|---|---|---|---|---|\n");
   std::mt19937_64 rng(1);
   std::normal_distribution<double> n;
-  for (double k : {0.25, 0.5, 1.0}) {
+  for (double k : {0.25, 0.5, 1.0, 2.0}) {
     for (double arl0 : {1e3, quick ? 1e4 : 1e5}) {
-      const CusumDesign d = design_cusum(2.0 * k, arl0, 0.0);
+      // k = 2 beyond the monitor's cap, to show why it is capped at 1.
+      const CusumDesign d = design_cusum(2.0 * k, arl0, 0.0, k);
       TwoSidedCusum c(d);
       const int runs = arl0 > 5e4 ? 300 : 2000;
       double total = 0.0, delay = 0.0;
