@@ -92,7 +92,7 @@ void null_section(bool quick) {
   s.false_alarm_days = 1.0 / 24.0;  // one false alarm per hour of running, all detectors
   s.min_relative_change = 0.0;
   s.drift_per_hour = 1e-6;
-  const int runs = quick ? 4 : 16;
+  const int runs = quick ? 4 : 40;
   int fast = 0, sure = 0, drift = 0;
   double hours = 0.0;
   for (int seed = 1; seed <= runs; ++seed) {

@@ -99,7 +99,9 @@ HealthMonitor::HealthMonitor(const HealthSettings& settings, const WindowEstimat
   // plant that drifts from one that has stepped (docs/health.md).
   reference_.theta = baseline.theta;
   reference_.covariance = baseline.covariance;
-  report_.since = baseline.t_end;
+  // The baseline's times may be from another run (a file made elsewhere): the state's clock
+  // starts with this monitor.
+  report_.since = 0.0;
 }
 
 HealthMonitor::Prediction HealthMonitor::predict(double t, double data_before) const {

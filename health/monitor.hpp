@@ -111,7 +111,7 @@ struct HealthEvent {
 
 struct HealthReport {
   State state = State::ok;
-  double since = 0.0;  // loop time the state was entered
+  double since = 0.0;  // loop time the state was entered (0: since the monitor started)
   bool has_change = false;
   ChangePoint change;  // the latest change point
   // The latest window against the baseline (published, never an alarm by itself) and against
@@ -134,7 +134,8 @@ struct HealthReport {
 
 class HealthMonitor {
  public:
-  // `baseline`: the refined window saved as healthy (its θ̂, covariance and time span).
+  // `baseline`: the refined window saved as healthy (its θ̂ and covariance; its times may be
+  // from another run and are not used).
   HealthMonitor(const HealthSettings& settings, const WindowEstimate& baseline);
 
   // A converged refined window, in time order.
