@@ -33,6 +33,8 @@ std::string validate(const HealthSettings& s) {
     std::string error = range_error(c.key, c.value, c.lo, c.hi);
     if (!error.empty()) return error;
   }
+  if (s.reference_span_s > s.trend_span_s)
+    return "health.reference_span_s: must not exceed health.trend_span_s (the windows kept)";
   if (s.trend_min_span_s > s.trend_span_s)
     return "health.trend_min_span_s: must not exceed health.trend_span_s";
   return "";

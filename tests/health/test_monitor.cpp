@@ -198,6 +198,12 @@ TEST(HealthSettings, ValidationNamesTheKey) {
   s = HealthSettings{};
   s.trend_min_span_s = 7200.0;
   EXPECT_NE(validate(s).find("health.trend_min_span_s"), std::string::npos);
+  s = HealthSettings{};
+  s.reference_span_s = 7200.0;
+  EXPECT_NE(validate(s).find("health.reference_span_s"), std::string::npos);
+  s = HealthSettings{};
+  s.block_s = std::nan("");
+  EXPECT_NE(validate(s).find("health.block_s"), std::string::npos);
 }
 
 }  // namespace
