@@ -37,9 +37,9 @@ struct CusumDesign {
 
 // k = min(shift/2, max_k) and the h whose false-alarm rate is 1/arl0_blocks. A CUSUM with a large
 // k is a Shewhart chart (one block decides), and there Siegmund's overshoot correction no longer
-// holds: simulated at ARL₀ = 1e5 blocks, k = 1 ran 0.94× its design and k = 2 only 0.62×
-// (bench/bench_health_calibration.cpp). Capping k at 1 keeps the design true and only lowers the
-// smallest shift seen in one block.
+// holds: simulated, k = 2 runs far shorter than its design while k ≤ 1 keeps it
+// (bench/bench_health_calibration.cpp, docs/health.md). Capping k at 1 keeps the design true and
+// only lowers the smallest shift seen in one block.
 CusumDesign design_cusum(double shift, double arl0_blocks, double bias_variance,
                          double max_k = 1.0) noexcept;
 
