@@ -187,8 +187,8 @@ void HealthMonitor::test_against_reference(const WindowEstimate& w) {
   // A level without a slope cannot tell a drift from a step: only the baseline (the first
   // window, a change while nothing ran) or a trend with its slope may raise `changed`. And a
   // short trend's extrapolation moves with each new window (its newest windows weigh most), so
-  // its tests renew faster than the window's β says: measured on simulated steady plants, the
-  // rate matched the design once the trend spanned 3 window lengths (1.6× at 2, 6× at any).
+  // its tests renew faster than the window's β says: on simulated steady plants the rate
+  // matched the design only once the trend spanned kSureMinSpanWindows (docs/health.md).
   const bool may_alarm =
       (p.fit.with_slope && p.fit.data_span >= kSureMinSpanWindows * w.length()) || p.from_baseline;
   if (may_alarm && r.alarm()) {
