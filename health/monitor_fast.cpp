@@ -1,0 +1,190 @@
+// The health monitor's fast detector: the reference model the residuals come from, the CUSUMs'
+// design, the blocks, and an alarm's onset and isolation.
+#include <algorithm>
+#include <cmath>
+
+#include "health/monitor.hpp"
+
+namespace scp::health {
+
+namespace {
+
+// Blocks kept for the isolation since an onset: the CUSUM's change point lies within the last
+// few design delays, far less than this.
+constexpr double kRecentBlocksSeconds = 900.0;
+// How far before the CUSUM's change point a drift's start is searched.
+constexpr double kRampSearchSeconds = 600.0;
+// A ramp must fit better than a step by this much (χ²₁ at 0.999): right after a step the few
+// blocks since it fit both shapes alike, and the step is the fast detector's design.
+constexpr double kRampMargin = 10.83;
+constexpr double kRampMinEvidenceSeconds = 20.0;
+
+}  // namespace
+
+Reference HealthMonitor::reference_at(double t) const {
+  Reference r = reference_;
+  if (r.valid && reference_fit_.with_slope)
+    r.theta += reference_fit_.slope * (t - reference_fit_.t_eval);
+  return r;
+}
+
+// The reference for the residuals from time t on: the trend of the windows that ended one window
+// length before t (a window since then may already straddle a change the CUSUM has not yet
+// found); while there are fewer than two of those (the first window length of a segment), the
+// trend of every window so far. None before the segment's first live window.
+void HealthMonitor::update_reference(double t) {
+  Prediction p = predict(t, t - last_window_length_);
+  if (!p.valid || p.fit.windows < 2) p = predict(t, t);
+  if (history_.empty()) p.valid = false;
+  ++reference_.generation;
+  reference_.valid = p.valid;
+  reference_fit_ = p.fit;
+  if (!p.valid) return;
+  reference_.theta = p.fit.level;
+  reference_.covariance = p.fit.level_covariance;
+}
+
+// Per parameter i: the design shift in z units, δ_i = design_change·|θ_i|·√Ī_ii (Ī the mean
+// information per block), and the bias the reference's own error e ~ N(0, C_ref) puts into z_i,
+// (Ī e)_i/√Ī_ii, of variance (Ī C_ref Ī)_ii/Ī_ii. The false-alarm budget is shared equally.
+void HealthMonitor::design_cusums() {
+  if (information_blocks_ == 0 || !reference_.valid) return;
+  int free = 0;
+  for (int i = 0; i < kParams; ++i) free += mean_information_(i, i) > 0.0 ? 1 : 0;
+  if (free == 0) return;
+  const double arl0_blocks = free / (rate_per_detector_ * settings_.block_s);
+  const Matrix6 spread = mean_information_ * reference_.covariance * mean_information_;
+  for (int i = 0; i < kParams; ++i) {
+    const double info = mean_information_(i, i);
+    if (!(info > 0.0)) continue;
+    const double shift = settings_.design_change * std::abs(reference_.theta[i]) * std::sqrt(info);
+    const double bias_variance = std::max(0.0, spread(i, i) / info);
+    const CusumDesign d = design_cusum(shift, arl0_blocks, bias_variance);
+    cusums_[i].set_design(d);
+    report_.fast.design[i] = d;
+    report_.fast.design_delay_s[i] = cusum_delay(d, shift) * settings_.block_s;
+  }
+}
+
+void HealthMonitor::add_sample(double t, const Vector2& residual, const Matrix26& sensitivity) {
+  if (!reference_.valid) return;
+  if (accumulator_.add(t, residual, sensitivity)) add_block(accumulator_.last());
+}
+
+void HealthMonitor::add_block(const ScoreBlock& block) {
+  if (!reference_.valid || block.samples == 0 || !block.score.allFinite() ||
+      !block.information.allFinite())
+    return;
+  recent_blocks_.push_back(block);
+  const double oldest = block.t_end - kRecentBlocksSeconds;
+  std::erase_if(recent_blocks_, [oldest](const ScoreBlock& b) { return b.t_end < oldest; });
+  // The running mean of the information per block, then an exponential mean over ~1000 blocks.
+  ++information_blocks_;
+  const double weight =
+      1.0 / static_cast<double>(std::min<std::uint64_t>(information_blocks_, 1000));
+  mean_information_ += weight * (block.information - mean_information_);
+  if (information_blocks_ == 1) {
+    design_cusums();
+    return;  // the first block designs the CUSUMs; they start with the next
+  }
+  FastReport& f = report_.fast;
+  f.active = true;
+  ++f.blocks;
+  const Vector6 z = block.z();
+  bool alarm = false;
+  for (int i = 0; i < kParams; ++i) {
+    if (!(block.information(i, i) > 0.0) || !(mean_information_(i, i) > 0.0)) continue;
+    alarm = cusums_[i].update(z[i], block.t_begin) || alarm;
+    f.ratio[i] = cusums_[i].ratio();
+  }
+  if (alarm) fast_alarm(block);
+}
+
+// A drift that starts late makes the reference lag behind it until the trend catches up: the
+// residual grows linearly where a step's is constant. Each block's single-parameter estimate
+// δ_b = s_b/I_b (weight I_b) over the recent blocks is fitted as a step, δ = ∆·[t ≥ s], and as a
+// ramp, δ = r·(t − s)⁺, over a grid of s; a ramp whose weighted residual sum is clearly smaller
+// raises `drift` from s and starts a new segment there.
+bool HealthMonitor::late_drift(int parameter, double onset) {
+  struct Fit {
+    double sse = 1e300, onset = 0.0, amplitude = 0.0;
+  } step, ramp;
+  // A step alarms within a few blocks of its onset, and over so few any two-parameter shape
+  // fits: only an alarm that took longer to build up can be a drift.
+  if (recent_blocks_.empty() || recent_blocks_.back().t_end - onset < kRampMinEvidenceSeconds)
+    return false;
+  double total = 0.0;
+  for (const auto& b : recent_blocks_) {
+    const double info = b.information(parameter, parameter);
+    if (info > 0.0) total += b.score[parameter] * b.score[parameter] / info;
+  }
+  const double first = std::max(recent_blocks_.front().t_begin, onset - kRampSearchSeconds);
+  for (double s = first; s <= onset; s += settings_.block_s) {
+    double gg[2] = {0, 0}, gd[2] = {0, 0};
+    for (const auto& b : recent_blocks_) {
+      const double info = b.information(parameter, parameter);
+      const double t = 0.5 * (b.t_begin + b.t_end);
+      const double g[2] = {t >= s ? 1.0 : 0.0, std::max(0.0, t - s)};
+      for (int k = 0; k < 2; ++k) {
+        gg[k] += g[k] * g[k] * info;
+        gd[k] += g[k] * b.score[parameter];  // Σ g·I·δ = Σ g·s
+      }
+    }
+    for (int k = 0; k < 2; ++k) {
+      if (!(gg[k] > 0.0)) continue;
+      const double sse = total - gd[k] * gd[k] / gg[k];
+      Fit& f = k == 0 ? step : ramp;
+      if (sse < f.sse) f = {sse, s, gd[k] / gg[k]};
+    }
+  }
+  if (!(step.sse - ramp.sse > kRampMargin)) return false;
+  std::array<ParameterTrend, kParams> trend{};
+  ParameterTrend& p = trend[parameter];
+  const double theta = std::abs(reference_at(ramp.onset).theta[parameter]);
+  p.tested = true;
+  p.per_hour = ramp.amplitude * 3600.0;
+  p.relative_per_hour = theta > 0.0 ? p.per_hour / theta : 0.0;
+  p.drifting = true;
+  const double t = recent_blocks_.back().t_end;
+  if (drift_armed_) raise_drift(t, trend, ramp.onset, parameter);
+  start_segment(ramp.onset, t);
+  return true;
+}
+
+void HealthMonitor::fast_alarm(const ScoreBlock& block) {
+  int channel = 0;
+  for (int i = 1; i < kParams; ++i)
+    if (cusums_[i].ratio() > cusums_[channel].ratio()) channel = i;
+  const double onset = cusums_[channel].onset();
+  ScoreBlock since;
+  for (const auto& b : recent_blocks_)
+    if (b.t_begin >= onset) since.add(b);
+  const Isolation iso = isolate(since.score, since.information);
+  const double theta = std::abs(reference_at(onset).theta[std::max(iso.parameter, 0)]);
+  if (iso.parameter < 0 || !(std::abs(iso.delta) >= settings_.min_relative_change * theta)) {
+    ++report_.dismissed;
+    for (auto& c : cusums_) c.reset();
+    return;
+  }
+  if (late_drift(iso.parameter, onset)) return;
+  ChangePoint c;
+  c.detector = Detector::fast;
+  c.onset = onset;
+  c.detected_at = block.t_end;
+  c.parameter = iso.parameter;
+  const Vector6 ref = reference_at(onset).theta;
+  for (int i = 0; i < kParams; ++i) {
+    const double info = since.information(i, i);
+    ParameterShift& p = c.parameters[i];
+    p.tested = info > 0.0;
+    if (!p.tested) continue;
+    p.delta = since.score[i] / info;
+    p.sigma = 1.0 / std::sqrt(info);
+    p.z = p.delta / p.sigma;
+    p.relative = ref[i] != 0.0 ? p.delta / std::abs(ref[i]) : 0.0;
+    p.moved = i == iso.parameter;
+  }
+  raise_change(c);
+}
+
+}  // namespace scp::health

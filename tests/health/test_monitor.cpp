@@ -1,0 +1,210 @@
+// The health monitor on synthetic windows and score blocks (monitor_run.hpp): quiet on a steady
+// plant, `changed` with the parameter and onset after a step, `drift` (once, and no `changed`)
+// on a plant drifting from the start, acknowledgements, and bad input.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "tests/health/monitor_run.hpp"
+
+namespace scp::health {
+namespace {
+
+test::ThetaOfTime steady() {
+  return [](double) { return test::paper_theta(); };
+}
+
+test::ThetaOfTime step(int parameter, double relative, double at) {
+  return [=](double t) {
+    Vector6 th = test::paper_theta();
+    if (t >= at) th[parameter] *= 1.0 + relative;
+    return th;
+  };
+}
+
+TEST(HealthMonitor, ASteadyPlantRaisesNothingAtTheDefaultDesign) {
+  // Two hours at 30 days' design: the expected number of false alarms is 0.003.
+  test::RunOptions o;
+  o.duration_s = 7200.0;
+  const auto r = test::run_monitor(HealthSettings{}, steady(), o);
+  EXPECT_TRUE(r.events.empty());
+  EXPECT_EQ(r.report.state, State::ok);
+  EXPECT_TRUE(r.report.fast.active);
+  EXPECT_TRUE(r.report.drift.valid);
+  EXPECT_GT(r.report.windows, 600u);
+}
+
+TEST(HealthMonitor, FalseAlarmsFollowTheDesignedInterval) {
+  // Designed for one false alarm per 30 min of running among the three detectors, with every
+  // practical floor off: 6 h should give ~12 (Poisson: 5..21 holds 99 %). Ignoring the windows'
+  // overlap would give several times more; the bench measures this over far longer runs.
+  HealthSettings s;
+  s.false_alarm_days = 30.0 / 1440.0;
+  s.min_relative_change = 0.0;
+  s.drift_per_hour = 1e-6;
+  int alarms = 0;
+  for (std::uint64_t seed : {1u, 2u}) {
+    test::RunOptions o;
+    o.duration_s = 3 * 3600.0;
+    o.seed = seed;
+    const auto r = test::run_monitor(s, steady(), o);
+    alarms += r.changes() + r.drifts();
+  }
+  EXPECT_GE(alarms, 5);
+  EXPECT_LE(alarms, 21);
+}
+
+TEST(HealthMonitor, AThermalStepIsChangedWithItsOnsetAndParameter) {
+  const double at = 1803.7;
+  test::RunOptions o;
+  o.duration_s = 3600.0;
+  const auto r = test::run_monitor(HealthSettings{}, step(4, 0.10, at), o);
+  ASSERT_EQ(r.changes(), 1);
+  ASSERT_EQ(r.drifts(), 0);
+  const ChangePoint& c = r.events.front().change;
+  EXPECT_EQ(c.detector, Detector::fast);
+  EXPECT_EQ(c.parameter, 4);
+  EXPECT_NEAR(c.onset, at, 1.5);
+  EXPECT_LT(c.detected_at - at, 3.0);
+  EXPECT_NEAR(c.parameters[4].relative, 0.10, 0.01);
+  EXPECT_EQ(r.report.state, State::changed);
+}
+
+TEST(HealthMonitor, ADampingStepIsFoundFastAndNamed) {
+  // b/m +10 % (the first case): θ1..θ4 are strongly correlated, yet the single-parameter
+  // GLR of the residual scores names b/m.
+  const double at = 2400.3;
+  test::RunOptions o;
+  o.duration_s = 3000.0;
+  for (std::uint64_t seed : {1u, 2u, 3u, 5u}) {
+    o.seed = seed;
+    const auto r = test::run_monitor(HealthSettings{}, step(0, 0.10, at), o);
+    ASSERT_EQ(r.changes(), 1) << seed;
+    const ChangePoint& c = r.events.front().change;
+    EXPECT_EQ(c.detector, Detector::fast);
+    EXPECT_EQ(c.parameter, 0);
+    EXPECT_NEAR(c.onset, at, 1.5);
+    // The design delay for 10 % of b/m is ~5 blocks here (k capped at 1, h ≈ 9): the synthetic
+    // information of θ1 alone is ~3σ per 1 s block.
+    EXPECT_LT(c.detected_at - at, 2.0 * r.report.fast.design_delay_s[0] + 1.0);
+    EXPECT_NEAR(c.parameters[0].relative, 0.10, 0.02);
+  }
+}
+
+TEST(HealthMonitor, TheSureDetectorAloneFindsAMechanicalStep) {
+  // Without residual blocks: the windows alone. b/m +10 % is ~9σ of one window.
+  const double at = 2405.0;
+  test::RunOptions o;
+  o.duration_s = 4200.0;
+  o.blocks = false;
+  const auto r = test::run_monitor(HealthSettings{}, step(0, 0.10, at), o);
+  ASSERT_EQ(r.changes(), 1);
+  const ChangePoint& c = r.events.front().change;
+  EXPECT_EQ(c.detector, Detector::sure);
+  EXPECT_EQ(c.parameter, 0);
+  // Confirmed once a window lies after the onset (step or late drift?): one window length and
+  // a few refits after the step.
+  EXPECT_GT(c.detected_at, at + 300.0);
+  EXPECT_LT(c.detected_at - at, 300.0 + 60.0);
+  EXPECT_NEAR(c.onset, at, 15.0);
+}
+
+TEST(HealthMonitor, APlantDriftingFromTheStartIsDriftNotChanged) {
+  // b/m +20 %/h from the baseline on (the drifting plant).
+  test::RunOptions o;
+  o.duration_s = 1.5 * 3600.0;
+  const auto theta = [](double t) {
+    Vector6 th = test::paper_theta();
+    th[0] *= 1.0 + 0.2 * std::max(t, 0.0) / 3600.0;
+    return th;
+  };
+  const auto r = test::run_monitor(HealthSettings{}, theta, o);
+  EXPECT_EQ(r.changes(), 0);
+  ASSERT_EQ(r.drifts(), 1);
+  EXPECT_EQ(r.report.state, State::drift);
+  const ParameterTrend& b = r.report.drift.parameters[0];
+  EXPECT_TRUE(b.drifting);
+  EXPECT_NEAR(b.relative_per_hour / 0.2, 1.0, 0.5);  // relative to the drifted level
+  EXPECT_TRUE(r.report.baseline_deviation.parameters[0].moved);
+}
+
+TEST(HealthMonitor, ADriftThatStartsLateIsMostlyDrift) {
+  // b/m +20 %/h from 30 min on: the reference (a trend over the last 20 min) lags behind the
+  // kink for a while, and the step/ramp shape tests must call most of them drifts (the rate of
+  // `changed` is measured in bench/bench_health_calibration.cpp).
+  int changes = 0, drifts = 0;
+  for (std::uint64_t seed = 1; seed <= 4; ++seed) {
+    test::RunOptions o;
+    o.duration_s = 1.5 * 3600.0;
+    o.seed = seed;
+    const auto theta = [](double t) {
+      Vector6 th = test::paper_theta();
+      th[0] *= 1.0 + 0.2 * std::max(t - 1800.0, 0.0) / 3600.0;
+      return th;
+    };
+    const auto r = test::run_monitor(HealthSettings{}, theta, o);
+    changes += r.changes();
+    drifts += r.drifts() > 0 ? 1 : 0;
+  }
+  EXPECT_EQ(drifts, 4);
+  EXPECT_LE(changes, 2);
+}
+
+TEST(HealthMonitor, AcknowledgeReturnsToOk) {
+  HealthMonitor m(HealthSettings{}, test::baseline_window(test::paper_theta(),
+                                                          test::window_covariance_300s(), 300, 1));
+  m.acknowledge(5.0);
+  EXPECT_TRUE(m.take_events().empty());  // nothing latched: nothing to acknowledge
+  test::WindowStream s(step(5, -0.2, 0.0), test::window_covariance_300s(), 300, 10, 3);
+  m.add_window(s.next());  // the first window against the baseline: θ6 −20 %
+  auto events = m.take_events();
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].change.parameter, 5);
+  EXPECT_EQ(events[0].change.detector, Detector::sure);
+  EXPECT_EQ(m.report().state, State::changed);
+  m.acknowledge(400.0);
+  events = m.take_events();
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].kind, EventKind::acknowledged);
+  EXPECT_EQ(m.report().state, State::ok);
+  EXPECT_EQ(m.report().since, 400.0);
+}
+
+TEST(HealthMonitor, BadWindowsAreCountedNotUsed) {
+  HealthMonitor m(HealthSettings{}, test::baseline_window(test::paper_theta(),
+                                                          test::window_covariance_300s(), 300, 1));
+  WindowEstimate w =
+      test::baseline_window(test::paper_theta(), test::window_covariance_300s(), 300, 2);
+  w.t_begin += 300;
+  w.t_end += 300;
+  WindowEstimate nan = w;
+  nan.theta[2] = std::nan("");
+  m.add_window(nan);
+  WindowEstimate backwards = w;
+  backwards.t_end = backwards.t_begin;
+  m.add_window(backwards);
+  m.add_window(w);
+  m.add_window(w);  // not after the previous one
+  EXPECT_EQ(m.report().windows, 4u);
+  EXPECT_EQ(m.report().windows_rejected, 3u);
+  EXPECT_TRUE(m.take_events().empty());
+}
+
+TEST(HealthSettings, ValidationNamesTheKey) {
+  EXPECT_EQ(validate(HealthSettings{}), "");
+  HealthSettings s;
+  s.false_alarm_days = 0.0;
+  EXPECT_NE(validate(s).find("health.false_alarm_days"), std::string::npos);
+  s = HealthSettings{};
+  s.trend_min_span_s = 7200.0;
+  EXPECT_NE(validate(s).find("health.trend_min_span_s"), std::string::npos);
+  s = HealthSettings{};
+  s.reference_span_s = 7200.0;
+  EXPECT_NE(validate(s).find("health.reference_span_s"), std::string::npos);
+  s = HealthSettings{};
+  s.block_s = std::nan("");
+  EXPECT_NE(validate(s).find("health.block_s"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace scp::health
