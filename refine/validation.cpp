@@ -17,7 +17,9 @@ constexpr double kDampingTolerance = 1e-3;
 // of a uniform record differs in its last bits from sample to sample.
 constexpr double kIntervalTolerance = 1e-6;
 
-bool same_interval(double a, double b) { return std::abs(a - b) <= kIntervalTolerance * b; }
+bool same_interval(double a, double b) {
+  return std::abs(a - b) <= kIntervalTolerance * b;
+}
 
 double block_length(double time_constant, int per_time_constant) {
   const double n = std::max(1, per_time_constant);
