@@ -73,6 +73,8 @@ enum class Verdict : std::uint8_t {
 };
 const char* verdict_name(Verdict verdict) noexcept;  // "adequate", "noise_colored", ...
 
+inline constexpr int kMaxJacobianColumns = 24;
+
 struct ValidationSettings {
   // The identified model's time constants (s): the mechanical block's slowest and the thermal
   // one (model_time_constants() computes them from θ̂). They set the block length and the lags.
@@ -94,12 +96,13 @@ struct ValidationSettings {
   // kMaxJacobianColumns); 0: none (the residual is tested without projecting off the fit, which
   // makes every regression test conservative: the paper law's prediction).
   int jacobian_columns = 0;
+  // Columns of the sensitivities that belong to parameters the fit held fixed (the daemon's
+  // `estimator.known`): not projected off, since the fit did not use them.
+  std::array<bool, kMaxJacobianColumns> fixed_columns{};
   // Tests switched off (e.g. a targeted test whose term the fit now estimates; a term whose
   // sensitivity is in the span of J drops out by itself).
   std::array<bool, kValidationTests> disabled{};
 };
-
-inline constexpr int kMaxJacobianColumns = 24;
 
 // One sample of the fit's final pass.
 struct ValidationSample {
@@ -112,8 +115,7 @@ struct ValidationSample {
   // The T̄ the model's mechanical block is driven by (the simulated one, unless the fit drives it
   // by the measured T̄).
   double mechanical_input = 0.0;
-  // ∂x̂/∂p and ∂T̄̂/∂p of the free parameters (jacobian_columns values each; a fixed parameter's
-  // column 0), or empty when jacobian_columns = 0.
+  // ∂x̂/∂p and ∂T̄̂/∂p (jacobian_columns values each), or empty when jacobian_columns = 0.
   std::span<const double> jacobian_x;
   std::span<const double> jacobian_tbar;
 };

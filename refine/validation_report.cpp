@@ -24,11 +24,12 @@ struct Block {
   double time_constant = 0.0;
   MatrixXd jacobian;  // block means of the fit's sensitivities, all-zero columns left out
 
-  Block(const BlockMeans& store, double tau, int first_jacobian, int columns)
+  Block(const BlockMeans& store, double tau, int first_jacobian, const ValidationSettings& s)
       : means(store.means()), counts(store.counts()), block_s(store.block_s()), time_constant(tau) {
     std::vector<Index> used;
-    for (int j = 0; j < columns; ++j)
-      if (means.col(first_jacobian + j).cwiseAbs().maxCoeff() > 0.0)
+    for (int j = 0; j < s.jacobian_columns; ++j)
+      if (!s.fixed_columns[static_cast<std::size_t>(j)] && means.rows() > 0 &&
+          means.col(first_jacobian + j).cwiseAbs().maxCoeff() > 0.0)
         used.push_back(first_jacobian + j);
     jacobian.resize(means.rows(), static_cast<Index>(used.size()));
     for (std::size_t j = 0; j < used.size(); ++j)
@@ -164,10 +165,10 @@ void decide(ValidationReport& report, ValidationBlock which, double family) {
 ValidationReport ResidualValidator::finish() const {
   ValidationReport report;
   report.samples = samples_;
-  const int p = settings_.jacobian_columns;
   const Block mech(mechanical_, settings_.mechanical_time_constant_s, layout::kMechanicalJacobian,
-                   p);
-  const Block therm(thermal_, settings_.thermal_time_constant_s, layout::kThermalJacobian, p);
+                   settings_);
+  const Block therm(thermal_, settings_.thermal_time_constant_s, layout::kThermalJacobian,
+                    settings_);
   auto set = [&](ValidationTest id, const TestOutcome& o) {
     if (!settings_.disabled[static_cast<int>(id)]) report.tests[static_cast<int>(id)] = o;
   };

@@ -57,6 +57,8 @@ struct StreamOptions {
   double dt = 1e-3;
   unsigned seed = 1;
   double x_slow = 0.0;  // a slow AR(1) component of the x noise (300-sample correlation), m
+  // The fit's sensitivities as if it had estimated x's zero (∂x̂/∂zero = 1) and x's gain.
+  bool zero_fitted = false;
 };
 
 ValidationReport run(const Deviation& deviation, const StreamOptions& o = {},
@@ -83,6 +85,11 @@ ValidationReport run(const Deviation& deviation, const StreamOptions& o = {},
     s.tbar = m.tbar + d[1] + kSigmaT * gauss(rng);
     s.thermal_input = m.u;
     s.mechanical_input = m.tbar;
+    const double jx[2] = {1.0, m.x}, jt[2] = {0.0, 0.0};
+    if (o.zero_fitted) {
+      s.jacobian_x = jx;
+      s.jacobian_tbar = jt;
+    }
     v.add(s);
   }
   return v.finish();
@@ -178,6 +185,29 @@ TEST(Validation, ColouredNoiseIsNoiseColoredNotStructure) {
     }
   }
   EXPECT_LE(structure, 1);
+}
+
+TEST(Validation, ATermTheFitEstimatesDropsOutOfItsTest) {
+  ValidationSettings s = n1_settings();
+  s.jacobian_columns = 2;
+  const auto zero = [](double, const ModelOutputs&, double) { return Eigen::Vector2d(5e-8, 0.0); };
+  const ValidationReport fitted = run(zero, {.seconds = 60.0, .zero_fitted = true}, s);
+  EXPECT_FALSE(fitted.outcome(ValidationTest::kDisplacementZero).performed);
+  // The noise ratio's degrees of freedom: N − 2 estimated columns in x, none in T̄.
+  EXPECT_EQ(fitted.outcome(ValidationTest::kNoiseRatioX).dof1, 60001 - 2);
+  EXPECT_EQ(fitted.outcome(ValidationTest::kNoiseRatioT).dof1, 60001);
+  // Held fixed by the fit, the same column is not projected off: the zero is found again.
+  s.fixed_columns[0] = true;
+  const ValidationReport fixed = run(zero, {.seconds = 60.0, .zero_fitted = true}, s);
+  EXPECT_EQ(fixed.mechanical.decisive, ValidationTest::kDisplacementZero);
+  EXPECT_EQ(fixed.outcome(ValidationTest::kNoiseRatioX).dof1, 60001 - 1);
+}
+
+TEST(Validation, NoSamplesIsUntested) {
+  const ValidationReport r = ResidualValidator(paper_theta(), n1_settings()).finish();
+  EXPECT_EQ(r.mechanical.verdict, Verdict::kUntested);
+  EXPECT_EQ(r.thermal.verdict, Verdict::kUntested);
+  EXPECT_EQ(r.samples, 0u);
 }
 
 TEST(Validation, AShortWindowLeavesTheThermalBlockUntested) {
