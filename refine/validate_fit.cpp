@@ -5,10 +5,8 @@
 
 namespace scp::refine {
 
-namespace {
-
-// V² averaged over (prev.t, cur.t], as the model saw it.
-double mean_square_voltage(const WindowSample& prev, const WindowSample& cur, double delay) {
+double mean_square_voltage(const WindowSample& prev, const WindowSample& cur,
+                           double delay) noexcept {
   Piece pieces[2];
   const int n = pieces_between(prev, cur, pieces, delay);
   double tau = 0.0, sum = 0.0;
@@ -18,8 +16,6 @@ double mean_square_voltage(const WindowSample& prev, const WindowSample& cur, do
   }
   return tau > 0.0 ? sum / tau : cur.voltage * cur.voltage;
 }
-
-}  // namespace
 
 ValidationReport validate_fit(std::span<const WindowSample> window, const FitResult& fit,
                               ValidationSettings settings, const std::array<bool, 6>& known) {

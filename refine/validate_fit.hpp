@@ -16,6 +16,11 @@ namespace scp::refine {
 // `known`, and the initial state) are projected off. The model is simulated as fit() does, with
 // its estimated voltage delay; the timing-jitter and landing-filter weights of a link's fit are
 // not reproduced (its residuals here are the plain simulation's).
+// V² averaged over (prev.t, cur.t] as the model sees it (the pieces of pieces_between, the voltage
+// switching `input_delay` later than recorded): the thermal block's input for a validation sample.
+double mean_square_voltage(const WindowSample& prev, const WindowSample& cur,
+                           double input_delay = 0.0) noexcept;
+
 ValidationReport validate_fit(std::span<const WindowSample> window, const FitResult& fit,
                               ValidationSettings settings, const std::array<bool, 6>& known = {});
 
