@@ -5,7 +5,7 @@
 // test each verdict named, how often each test failed and the median estimated size of each
 // targeted term.
 //
-//   build/bench/validation_sweep [--seconds 300] [--seeds 20] [--first-seed 1]
+//   build/bench/validation_sweep [--seconds 300] [--warmup 0] [--seeds 20] [--first-seed 1]
 //                                [--cells clean,zero_50um,...] [--noise n1,n3] [--per-seed]
 #include <algorithm>
 #include <cstdio>
@@ -115,6 +115,7 @@ void report(const Cell& cell, const NoiseLevel& noise, const Tally& t) {
 
 struct Options {
   double seconds = 300.0;
+  double warmup = 0.0;  // s simulated before the window (a refit of a running experiment)
   int seeds = 20, first_seed = 1;
   bool per_seed = false;
   std::vector<std::string> cells, noise{"n1", "n3"};
@@ -125,6 +126,8 @@ bool parse(int argc, char** argv, Options& o) {
     const bool has_value = i + 1 < argc;
     if (!std::strcmp(argv[i], "--seconds") && has_value) {
       o.seconds = std::atof(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--warmup") && has_value) {
+      o.warmup = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--seeds") && has_value) {
       o.seeds = std::atoi(argv[++i]);
     } else if (!std::strcmp(argv[i], "--first-seed") && has_value) {
@@ -139,7 +142,7 @@ bool parse(int argc, char** argv, Options& o) {
       return false;
     }
   }
-  return o.seconds > 0.0 && o.seeds > 0;
+  return o.seconds > 0.0 && o.warmup >= 0.0 && o.seeds > 0;
 }
 
 void print_seed(int seed, const FitResult& r, const ValidationReport& v) {
@@ -207,18 +210,19 @@ int main(int argc, char** argv) {
   Options o;
   if (!parse(argc, argv, o)) {
     std::fprintf(stderr,
-                 "usage: %s [--seconds S] [--seeds N] [--first-seed K] [--cells a,b] "
+                 "usage: %s [--seconds S] [--warmup S] [--seeds N] [--first-seed K] [--cells a,b] "
                  "[--noise n1,n3] [--per-seed]\n",
                  argv[0]);
     return 2;
   }
   const std::vector<NoiseLevel> levels{{"n1", 1e-7, 1e-3}, {"n3", 1e-6, 0.1}};
-  std::printf("validation sweep: %.0f s windows at 1 kHz, seeds %d..%d\n", o.seconds, o.first_seed,
-              o.first_seed + o.seeds - 1);
+  std::printf("validation sweep: %.0f s windows at 1 kHz after %.0f s, seeds %d..%d\n", o.seconds,
+              o.warmup, o.first_seed, o.first_seed + o.seeds - 1);
   for (const Cell& cell : all_cells()) {
     if (!wanted(o.cells, cell.name)) continue;
-    const auto clean = test::deviation_record(test::paper_actuator(), o.seconds, 1e-3,
-                                              test::paper_voltage(), cell.deviations);
+    auto clean = test::deviation_record(test::paper_actuator(), o.warmup + o.seconds, 1e-3,
+                                        test::paper_voltage(), cell.deviations);
+    clean.erase(clean.begin(), clean.begin() + static_cast<long>(std::llround(o.warmup / 1e-3)));
     for (const NoiseLevel& noise : levels)
       if (wanted(o.noise, noise.name)) report(cell, noise, run_cell(cell, clean, noise, o));
   }
