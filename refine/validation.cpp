@@ -129,7 +129,27 @@ void ResidualValidator::advance_candidates(const ValidationSample& s, double dt)
       mechanical_step_.exp * s_thermal_residual_ + dt * (mechanical_step_.phi1 * thermal_forcing);
 }
 
+namespace {
+
+bool finite_sample(const ValidationSample& s, std::size_t columns) {
+  const double values[] = {
+      s.t, s.x, s.x_model, s.tbar, s.tbar_model, s.thermal_input, s.mechanical_input};
+  for (double v : values)
+    if (!std::isfinite(v)) return false;
+  for (std::span<const double> j : {s.jacobian_x, s.jacobian_tbar})
+    for (std::size_t i = 0; i < std::min(columns, j.size()); ++i)
+      if (!std::isfinite(j[i])) return false;
+  return true;
+}
+
+}  // namespace
+
 void ResidualValidator::add(const ValidationSample& s) noexcept {
+  if (!finite_sample(s, static_cast<std::size_t>(settings_.jacobian_columns)) ||
+      (samples_ > 0 && !(s.t > t_prev_))) {
+    ++skipped_;
+    return;
+  }
   const double dt = samples_ > 0 ? s.t - t_prev_ : 0.0;
   advance_candidates(s, dt);
   const double y[2] = {s.x, s.tbar};

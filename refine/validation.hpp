@@ -154,6 +154,7 @@ struct ValidationReport {
   BlockReport mechanical, thermal;
   std::array<TestOutcome, kValidationTests> tests{};
   std::size_t samples = 0;
+  std::size_t skipped = 0;  // samples left out: a value not finite, or t not after the last one
 
   const BlockReport& block(ValidationBlock b) const {
     return b == ValidationBlock::kMechanical ? mechanical : thermal;
@@ -175,6 +176,8 @@ class ResidualValidator {
   // θ: the fitted parameters (the targeted candidates are the model's sensitivities at θ).
   ResidualValidator(const Vector6& theta, const ValidationSettings& settings);
 
+  // A sample with a value that is not finite, or whose t is not after the previous one's, is left
+  // out (counted in ValidationReport::skipped).
   void add(const ValidationSample& s) noexcept;
   ValidationReport finish() const;
 
@@ -184,7 +187,7 @@ class ResidualValidator {
   Vector6 theta_;
   ValidationSettings settings_;
   BlockMeans mechanical_, thermal_;
-  std::size_t samples_ = 0;
+  std::size_t samples_ = 0, skipped_ = 0;
   double t_first_ = 0.0, t_prev_ = 0.0, tbar_model_prev_ = 0.0;
   // Per output (x, T̄): Σε², and y's sums about its first value (for ‖y − mean y‖).
   std::array<double, 2> rss_{}, y_first_{}, y_sum_{}, y_squares_{};

@@ -165,6 +165,7 @@ void decide(ValidationReport& report, ValidationBlock which, double family) {
 ValidationReport ResidualValidator::finish() const {
   ValidationReport report;
   report.samples = samples_;
+  report.skipped = skipped_;
   const Block mech(mechanical_, settings_.mechanical_time_constant_s, layout::kMechanicalJacobian,
                    settings_);
   const Block therm(thermal_, settings_.thermal_time_constant_s, layout::kThermalJacobian,

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <numbers>
 #include <random>
 #include <vector>
@@ -201,6 +202,27 @@ TEST(Validation, ATermTheFitEstimatesDropsOutOfItsTest) {
   const ValidationReport fixed = run(zero, {.seconds = 60.0, .zero_fitted = true}, s);
   EXPECT_EQ(fixed.mechanical.decisive, ValidationTest::kDisplacementZero);
   EXPECT_EQ(fixed.outcome(ValidationTest::kNoiseRatioX).dof1, 60001 - 1);
+}
+
+TEST(Validation, ASampleThatIsNotFiniteOrGoesBackIsLeftOut) {
+  ResidualValidator v(paper_theta(), n1_settings());
+  ValidationSample s;
+  s.x_model = s.x = 1e-3;
+  s.tbar_model = s.tbar = 40.0;
+  v.add(s);
+  s.t = 1e-3;
+  s.x = std::numeric_limits<double>::quiet_NaN();
+  v.add(s);  // not finite
+  s.x = 1e-3;
+  s.t = 0.0;
+  v.add(s);  // goes back
+  s.t = 2e-3;
+  s.tbar = std::numeric_limits<double>::infinity();
+  v.add(s);
+  const ValidationReport r = v.finish();
+  EXPECT_EQ(r.samples, 1u);
+  EXPECT_EQ(r.skipped, 3u);
+  EXPECT_EQ(r.mechanical.residual_rms, 0.0);
 }
 
 TEST(Validation, NoSamplesIsUntested) {
