@@ -45,8 +45,8 @@ enum class ValidationTest : std::uint8_t {
   kWhitenessT,
   kNoiseRatioT,
   kIndependenceT,     // ε_T against the thermal input V² (or power) (lags 0..1 time constant)
-  kAmbientOffset,     // ε_T against a constant: the ambient is not where configured
-  kAmbientDrift,      // ε_T against time: the ambient moves
+  kAmbientOffset,     // ε_T against a constant (given a ramp): the ambient is not as configured
+  kAmbientDrift,      // ε_T against time (given a constant): the ambient moves
   kSensorLag,         // ε_T against −dT̄/dt: a first-order lag of the temperature sensor
   kResistanceTempco,  // ε_T against the sensitivity to R = R0(1 + ρT̄): a V²·T̄ forcing
   kCoolingTempco,     // ε_T against the sensitivity to λ = λ0(1 + γT̄): a T̄² forcing
