@@ -9,6 +9,8 @@
 
 #include "refine/landing_filter.hpp"
 #include "refine/sensitivities.hpp"
+#include "refine/validate_fit.hpp"
+#include "refine/validation.hpp"
 
 namespace scp::refine {
 
@@ -142,6 +144,24 @@ double since_landing(const WindowSample& prev, const WindowSample& cur, double i
 // E[min(m², c²)]/E[m²] for m² ~ χ²₂ (two channels): 1 − e^{−c²/2}; 1 without a threshold.
 double outlier_consistency(double threshold) {
   return threshold > 0.0 ? -std::expm1(-0.5 * threshold * threshold) : 1.0;
+}
+
+// PassSettings::validator: sample k as the pass sees it (rx, rt its residuals).
+void feed_validator(ResidualValidator& v, std::span<const WindowSample> window, std::size_t k,
+                    const SensitivitySimulator& sim, double rx, double rt, double input_delay) {
+  const WindowSample& w = window[k];
+  ValidationSample s;
+  s.t = w.t;
+  s.x = w.x;
+  s.x_model = w.x - rx;
+  s.tbar = w.tbar;
+  s.tbar_model = w.tbar - rt;
+  s.thermal_input =
+      k > 0 ? mean_square_voltage(window[k - 1], w, input_delay) : w.voltage * w.voltage;
+  s.mechanical_input = sim.state().tbar;
+  s.jacobian_x = std::span<const double>(sim.dx().data(), kParams);
+  s.jacobian_tbar = std::span<const double>(sim.dtbar().data(), kParams);
+  v.add(s);
 }
 
 // The residual bookkeeping shared by both passes.
@@ -334,6 +354,8 @@ bool jacobian_pass(std::span<const WindowSample> window, const ParamVector& p,
       break;
     }
     sums.add(k, window[k], sim.state(), rx, rt);
+    if (settings.validator != nullptr)
+      feed_validator(*settings.validator, window, k, sim, rx, rt, settings.input_delay);
     if (k == next_batch) [[unlikely]] {
       // sums.add has counted sample k's wx·rx² + wt·rt² already.
       batch_score = batch_sums.begin_batch(k, r.jtwj, r.cost - (wx * rx * rx + wt * rt * rt));

@@ -13,6 +13,8 @@
 
 namespace scp::refine {
 
+class ResidualValidator;
+
 struct PassSettings {
   // 1/σ² for x and T̄; 0 leaves that channel out of the fit.
   std::array<double, 2> weight{1.0, 1.0};
@@ -60,6 +62,10 @@ struct PassSettings {
   // sample's residuals by their covariance Σ + P + s·g gᵀ: prediction error on T̄, and on x
   // through T̄'s innovations only.
   bool landing_jitter = false;
+  // Jacobian passes: feeds every sample's residual, model outputs and sensitivities to this
+  // validator (refine/validation.hpp), so that the fit's final pass validates the model at no
+  // extra simulation. With the landing filter, the residuals are its innovations.
+  ResidualValidator* validator = nullptr;
 };
 
 // Samples between two polls of PassSettings::cancel: ~1 ms of simulation.

@@ -1,0 +1,126 @@
+// The validation of real fits (refine::fit, then refine::validate_fit) on 120 s windows of the
+// paper's experiment made by a second simulator (tests/refine/deviation_record.hpp), one seed per
+// case: clean windows come out adequate, and each deviation of a real bench that the fit does not
+// model gives `structure` in its block, named, with its size estimated to first order. The rates
+// over seeds and 300 s windows are bench/validation_sweep's (docs/validation.md).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "refine/validate_fit.hpp"
+#include "tests/refine/deviation_record.hpp"
+#include "tests/refine/record.hpp"
+
+namespace scp::refine {
+namespace {
+
+constexpr double kSeconds = 120.0;
+
+struct Noise {
+  double x, tbar;
+};
+constexpr Noise kN1{1e-7, 1e-3}, kN3{1e-6, 0.1};
+
+ValidationReport fit_and_validate(const test::Deviations& d, Noise noise, unsigned seed) {
+  const auto clean =
+      test::deviation_record(test::paper_actuator(), kSeconds, 1e-3, test::paper_voltage(), d);
+  const auto w = test::with_noise(clean, {.x = noise.x, .tbar = noise.tbar, .seed = seed});
+  Vector6 start = test::theta_of(test::paper_actuator());
+  start.head<4>() *= 0.17;  // the paper law's biased estimate under noise
+  const FitResult r = fit(w, start);
+  ValidationSettings s;
+  s.declared_noise = Vector2(noise.x, noise.tbar);
+  const ValidationReport v = validate_fit(w, r, s);
+  std::printf("fit %s; x: %s (%s), fit %.3f %%, RMS/σ %.3g; T: %s (%s), fit %.3f %%, RMS/σ %.3g\n",
+              r.converged ? "converged" : r.message, verdict_name(v.mechanical.verdict),
+              test_name(v.mechanical.decisive), v.mechanical.fit_percent, v.mechanical.noise_ratio,
+              verdict_name(v.thermal.verdict), test_name(v.thermal.decisive), v.thermal.fit_percent,
+              v.thermal.noise_ratio);
+  return v;
+}
+
+TEST(ValidationFits, CleanWindowsAreAdequate) {
+  for (const Noise n : {kN1, kN3}) {
+    const ValidationReport v = fit_and_validate({}, n, 1);
+    EXPECT_EQ(v.mechanical.verdict, Verdict::kAdequate) << test_name(v.mechanical.decisive);
+    EXPECT_EQ(v.thermal.verdict, Verdict::kAdequate) << test_name(v.thermal.decisive);
+    EXPECT_NEAR(v.mechanical.noise_ratio, 1.0, 0.02);
+    EXPECT_NEAR(v.thermal.noise_ratio, 1.0, 0.02);
+  }
+}
+
+// One deviation: the test that must name it, its true size in that test's units, and how close
+// the first-order estimate must come (relative; a term the fit has pulled θ̂ far to absorb is
+// estimated less well than an additive one).
+struct Case {
+  const char* name;
+  test::Deviations deviation;
+  Noise noise;
+  ValidationTest named;
+  double size;
+  double tolerance;
+};
+
+void expect_named(const Case& c) {
+  SCOPED_TRACE(c.name);
+  const ValidationReport v = fit_and_validate(c.deviation, c.noise, 1);
+  const BlockReport& b = v.block(block_of(c.named));
+  EXPECT_EQ(b.verdict, Verdict::kStructure);
+  EXPECT_EQ(b.decisive, c.named) << test_name(b.decisive);
+  const double effect = v.outcome(c.named).effect;
+  EXPECT_NEAR(effect, c.size, c.tolerance * std::abs(c.size));
+}
+
+TEST(ValidationFits, ADisplacementZeroIsNamed) {
+  expect_named({"50 µm, N3",
+                {.displacement_zero = 50e-6},
+                kN3,
+                ValidationTest::kDisplacementZero,
+                50e-6,
+                0.15});
+}
+
+TEST(ValidationFits, AnAmbientOffsetIsNamed) {
+  expect_named(
+      {"1 °C, N3", {.ambient_offset = 1.0}, kN3, ValidationTest::kAmbientOffset, 1.0, 0.1});
+}
+
+TEST(ValidationFits, AnAmbientDriftIsNamed) {
+  expect_named({"2 °C/h, N1",
+                {.ambient_drift = 2.0 / 3600},
+                kN1,
+                ValidationTest::kAmbientDrift,
+                2.0 / 3600,
+                0.5});
+}
+
+TEST(ValidationFits, ALaggingThermometerIsNamed) {
+  expect_named({"0.3 s, N3", {.sensor_lag = 0.3}, kN3, ValidationTest::kSensorLag, 0.3, 0.1});
+}
+
+TEST(ValidationFits, AHeaterResistanceTempcoIsNamed) {
+  expect_named({"0.004/°C, N3",
+                {.resistance_tempco = 0.004},
+                kN3,
+                ValidationTest::kResistanceTempco,
+                0.004,
+                0.5});
+}
+
+TEST(ValidationFits, StiffnessSofteningIsNamed) {
+  expect_named({"0.3 %/°C, N3",
+                {.stiffness_tempco = 0.003},
+                kN3,
+                ValidationTest::kStiffnessTempco,
+                0.003,
+                0.6});
+}
+
+TEST(ValidationFits, CoolingGrowingWithTemperatureIsNamed) {
+  expect_named(
+      {"0.5 %/°C, N3", {.cooling_tempco = 0.005}, kN3, ValidationTest::kCoolingTempco, 0.005, 0.5});
+}
+
+}  // namespace
+}  // namespace scp::refine
