@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "daemon/rt/rt_setup.hpp"
+#include "daemon/core/rt/rt_setup.hpp"
 #include "drivers/can/can_settings.hpp"
 #include "drivers/modbus/modbus_settings.hpp"
 #include "drivers/sim/sim_settings.hpp"
@@ -84,8 +84,8 @@ struct StateSettings {
   double warm_start_theta_max = 1e6;  // see daemon_keys.cpp
 };
 
-// The output-error refinement beside the paper's law (daemon/refine/, refine/fit.hpp): a worker
-// thread below the loop fits θ to a sliding window of the samples the estimator was fed.
+// The output-error refinement beside the paper's law (daemon/analysis/refine/, refine/fit.hpp): a
+// worker thread below the loop fits θ to a sliding window of the samples the estimator was fed.
 struct RefineSettings {
   bool enabled = true;
   double window_s = 300.0;      // the sliding window fitted (memory: see docs/configuration.md)
@@ -136,6 +136,12 @@ struct DaemonConfig {
   RecordingSettings recording;
   std::string log_level = "info";
 };
+
+// Fills the settings that other keys decide: the estimator's sample period and input validity
+// follow the loop and the safety limits, the simulated sensor reads the actuator's ambient, the
+// paper's excitation profile, the refinement's link timing. The loader calls it after reading;
+// a test that starts from the structs' defaults calls it to get what an empty file gives.
+void derive_settings(DaemonConfig& config);
 
 // Declares every key on `root` and fills `out`. Throws ConfigError naming key, line and range.
 void declare_daemon_keys(Binder& root, DaemonConfig& out);

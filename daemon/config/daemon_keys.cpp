@@ -115,7 +115,7 @@ void declare_sim(Binder sim, drivers::sim::SimSettings& out) {
                "temperature reported by temperature_out_of_range, °C");
 }
 
-void declare_driver(Binder driver, DriverSelection& out, const ActuatorSettings& actuator) {
+void declare_driver(Binder driver, DriverSelection& out) {
   driver.choice("type", out.type, "sim", {"sim", "replay", "modbus", "can"},
                 "which device the loop talks to");
   driver.number("start_timeout_s", out.start_timeout_s, 0.0, 0.0, 86400.0,
@@ -123,7 +123,6 @@ void declare_driver(Binder driver, DriverSelection& out, const ActuatorSettings&
                 "back-off) before the daemon exits with 69 (EX_UNAVAILABLE, not restarted by the "
                 "unit); 0 = wait without limit");
   declare_sim(driver.section("sim", "the simulated SCP actuator (type: sim)"), out.sim);
-  out.sim.ambient_c = actuator.ambient_c;
   Binder replay = driver.section("replay", "a recorded CSV played back (type: replay)");
   replay.text("file", out.replay.file, "",
               "CSV with header t,x,xdot,T,V (SI units, T in °C; t increasing, gaps allowed)");
@@ -362,12 +361,8 @@ void declare_recording(Binder recording, RecordingSettings& out) {
 
 // Checks that span keys or belong to the libraries' own validation; reported as ConfigErrors.
 void cross_check(const Binder& root, DaemonConfig& cfg) {
-  auto& est = cfg.estimator;
-  est.nominal_period = cfg.loop.period_s;
-  est.x_abs_max = cfg.safety.position_abs_max_m;
-  est.tbar_min = cfg.safety.temperature_min_c - cfg.actuator.ambient_c;
-  est.tbar_max = cfg.safety.temperature_max_c - cfg.actuator.ambient_c;
-  est.voltage_max = std::max(cfg.safety.voltage_max_v, 1e-9) * 1.5;
+  derive_settings(cfg);
+  const auto& est = cfg.estimator;
   if (cfg.safety.temperature_min_c >= cfg.safety.temperature_max_c) {
     root.fail("safety", "safety.temperature_min_c must be below safety.temperature_max_c");
   }
@@ -383,17 +378,13 @@ void cross_check(const Binder& root, DaemonConfig& cfg) {
   if (cfg.refine.min_window_s > cfg.refine.window_s) {
     root.fail("refine", "refine.min_window_s must not exceed refine.window_s");
   }
-  cfg.refine.estimate_link_timing = cfg.refine.link_timing == "estimate" ||
-                                    (cfg.refine.link_timing == "auto" && cfg.driver.type != "sim");
-  // The window is preallocated (daemon/refine/sample_window.hpp); refuse a size that would not fit.
+  // The window is preallocated (daemon/analysis/refine/sample_window.hpp); refuse a size that would
+  // not fit.
   if (cfg.refine.enabled && cfg.refine.window_s / cfg.loop.period_s > kMaxRefineSamples) {
     root.fail("refine", "refine.window_s / loop.period_s is " +
                             std::to_string(std::llround(cfg.refine.window_s / cfg.loop.period_s)) +
                             " samples; at most " + std::to_string(std::llround(kMaxRefineSamples)) +
                             " fit in memory: shorten refine.window_s");
-  }
-  if (cfg.excitation.profile == "paper") {
-    cfg.excitation.settings = excitation::paper_excitation();
   }
   if (cfg.driver.type == "replay" && cfg.driver.replay.file.empty()) {
     root.fail("driver", "driver.type is replay but driver.replay.file is empty: name the CSV");
@@ -433,8 +424,7 @@ YAML::Node parse_yaml(const std::string& text, const std::string& name) {
 void declare_daemon_keys(Binder& root, DaemonConfig& out) {
   declare_loop(root.section("loop", "timing of the real-time loop"), out.loop);
   declare_actuator(root.section("actuator", "facts about the actuator on the bench"), out.actuator);
-  declare_driver(root.section("driver", "the device the loop reads and drives"), out.driver,
-                 out.actuator);
+  declare_driver(root.section("driver", "the device the loop reads and drives"), out.driver);
   declare_estimator(root.section("estimator", "the filtered least-squares estimator"),
                     out.estimator);
   declare_excitation(root.section("excitation", "the identification voltage"), out.excitation);

@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "daemon/batch_run.hpp"
+#include "daemon/batch/batch_run.hpp"
 #include "daemon/config/binder.hpp"
 #include "daemon/config/daemon_config.hpp"
 #include "tests/crb/fd_fisher.hpp"

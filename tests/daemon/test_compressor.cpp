@@ -11,8 +11,8 @@
 #include <fstream>
 #include <thread>
 
-#include "daemon/compressor.hpp"
-#include "daemon/recorder.hpp"
+#include "daemon/outputs/recording/compressor.hpp"
+#include "daemon/outputs/recording/recorder.hpp"
 #include "drivers/replay/csv_trace.hpp"
 #include "tests/support/gunzip.hpp"
 

@@ -5,7 +5,7 @@
 
 #include <filesystem>
 
-#include "daemon/instance.hpp"
+#include "daemon/service/instance.hpp"
 #include "tests/e2e/e2e_util.hpp"
 
 namespace scp::test {

@@ -6,8 +6,8 @@
 #include <ctime>
 #include <thread>
 
-#include "daemon/rt/alloc_counter.hpp"
-#include "daemon/rt/periodic_timer.hpp"
+#include "daemon/core/rt/alloc_counter.hpp"
+#include "daemon/core/rt/periodic_timer.hpp"
 
 namespace scp::rt {
 namespace {

@@ -5,7 +5,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 
-#include "daemon/server/render.hpp"
+#include "daemon/outputs/server/render.hpp"
 #include "tests/server/server_fixture.hpp"
 
 namespace scp::daemon::server {

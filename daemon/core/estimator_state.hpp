@@ -1,0 +1,29 @@
+#pragma once
+// The estimator's learned state as plain data: what the loop publishes for the checkpointer
+// (through a Seqlock, which needs a trivially copyable type) and what a checkpoint file holds.
+
+#include <array>
+#include <string>
+
+#include "daemon/service/state/checkpoint.hpp"
+#include "estimator/estimator.hpp"
+
+namespace scp::daemon {
+
+struct EstimatorStateView {
+  std::array<double, 6> theta_hat{};
+  std::array<double, 16> info_mech{};    // row-major 4×4
+  std::array<double, 4> info_thermal{};  // row-major 2×2
+  std::array<double, 2> eps2_mean{};
+  double t = 0.0;
+  bool valid = false;  // false until the loop has published once
+};
+
+EstimatorStateView to_view(const estimator::State& state) noexcept;
+estimator::State to_state(const EstimatorStateView& view) noexcept;
+// `actuator` and `endpoint` identify the actuator the estimate belongs to (warm_start.hpp).
+state::Checkpoint to_checkpoint(const EstimatorStateView& view, const std::string& driver,
+                                const std::string& actuator = {}, const std::string& endpoint = {});
+EstimatorStateView to_view(const state::Checkpoint& checkpoint) noexcept;
+
+}  // namespace scp::daemon

@@ -1,0 +1,18 @@
+#pragma once
+// Whether a checkpoint may seed this daemon's estimator. The file's checksum proves it is intact,
+// not that it belongs here: one learned on another driver (another bench) or holding absurd
+// values (θ̂1 = 1e300 with a valid checksum, measured: ε ≈ −2e295 in state `running`) must be
+// refused, and the daemon starts cold.
+
+#include <string>
+
+#include "daemon/config/daemon_config.hpp"
+#include "daemon/service/state/checkpoint.hpp"
+
+namespace scp::daemon {
+
+// True when usable; otherwise false with `why` naming the field and the remedy.
+bool checkpoint_fits(const state::Checkpoint& checkpoint, const config::DaemonConfig& config,
+                     const std::string& driver_name, std::string& why);
+
+}  // namespace scp::daemon
