@@ -54,10 +54,10 @@ nlohmann::json run_batch(config::DaemonConfig cfg, const BatchOptions& options) 
     recorder.emplace(options.record_path, *ring, refined_ring.get());
   }
   // The refinement runs inline between cycles, on loop time: the same fits every run.
-  std::unique_ptr<refine::HandOffRing> handoff;
+  std::unique_ptr<HandOffRing> handoff;
   std::optional<refine::Refiner> refiner;
   if (cfg.refine.enabled) {
-    handoff = std::make_unique<refine::HandOffRing>();
+    handoff = std::make_unique<HandOffRing>();
     refiner.emplace(cfg.refine, cfg.estimator, cfg.loop.period_s);
   }
   Loop loop(cfg, *driver, *published, *commands, ring.get(), /*block_when_record_full=*/true,

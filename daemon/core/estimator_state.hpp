@@ -1,11 +1,10 @@
 #pragma once
 // The estimator's learned state as plain data: what the loop publishes for the checkpointer
-// (through a Seqlock, which needs a trivially copyable type) and what a checkpoint file holds.
+// (through a Seqlock, which needs a trivially copyable type). The service writes it to a
+// checkpoint file (daemon/service/checkpoints.hpp).
 
 #include <array>
-#include <string>
 
-#include "daemon/service/state/checkpoint.hpp"
 #include "estimator/estimator.hpp"
 
 namespace scp::daemon {
@@ -21,9 +20,5 @@ struct EstimatorStateView {
 
 EstimatorStateView to_view(const estimator::State& state) noexcept;
 estimator::State to_state(const EstimatorStateView& view) noexcept;
-// `actuator` and `endpoint` identify the actuator the estimate belongs to (warm_start.hpp).
-state::Checkpoint to_checkpoint(const EstimatorStateView& view, const std::string& driver,
-                                const std::string& actuator = {}, const std::string& endpoint = {});
-EstimatorStateView to_view(const state::Checkpoint& checkpoint) noexcept;
 
 }  // namespace scp::daemon

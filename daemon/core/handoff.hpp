@@ -9,7 +9,7 @@
 #include "daemon/core/rt/spsc_ring.hpp"
 #include "refine/fit.hpp"
 
-namespace scp::daemon::refine {
+namespace scp::daemon {
 
 struct HandOff {
   scp::refine::WindowSample sample;
@@ -27,4 +27,4 @@ struct HandOff {
 inline constexpr std::size_t kHandOffCapacity = 16384;
 using HandOffRing = rt::SpscRing<HandOff, kHandOffCapacity>;
 
-}  // namespace scp::daemon::refine
+}  // namespace scp::daemon

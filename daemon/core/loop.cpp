@@ -45,7 +45,7 @@ const char* to_string(RunState state) noexcept {
 
 Loop::Loop(const config::DaemonConfig& config, drivers::Driver& driver,
            rt::Seqlock<PublishedState>& published, CommandRing& commands, RecordRing* record,
-           bool block_when_record_full, refine::HandOffRing* handoff)
+           bool block_when_record_full, HandOffRing* handoff)
     : config_(config),
       safety_(config.safety),
       driver_(driver),
@@ -372,7 +372,7 @@ void Loop::hand_off(const drivers::Sample& fed) noexcept {
     ++handoff_segment_;
     handoff_break_ = false;
   }
-  refine::HandOff h;
+  HandOff h;
   h.sample.t = fed.t;
   h.sample.x = fed.x;
   h.sample.tbar = fed.temperature - config_.actuator.ambient_c;

@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "daemon/config/daemon_config.hpp"
+#include "daemon/core/commands.hpp"
 #include "daemon/core/estimator_state.hpp"
 #include "daemon/core/excitation_exchange.hpp"
 #include "daemon/core/handoff.hpp"
@@ -25,7 +26,6 @@
 
 namespace scp::daemon {
 
-using CommandRing = rt::SpscRing<Command, 64>;
 using RecordRing = rt::SpscRing<RecordRow, 16384>;
 using EstimatorStateCell = rt::Seqlock<EstimatorStateView>;
 // Safety limits changed by a reload (SIGHUP), written by the main thread, read by the loop.
@@ -41,7 +41,7 @@ class Loop {
   // sample, counts it and marks a break in the data.
   Loop(const config::DaemonConfig& config, drivers::Driver& driver,
        rt::Seqlock<PublishedState>& published, CommandRing& commands, RecordRing* record,
-       bool block_when_record_full, refine::HandOffRing* handoff = nullptr);
+       bool block_when_record_full, HandOffRing* handoff = nullptr);
 
   CycleResult cycle(const drivers::CycleTime& now) noexcept;
 
@@ -142,7 +142,7 @@ class Loop {
   LoopStatistics stats_{};
   std::uint64_t cycles_ = 0;
   std::uint64_t dropped_rows_ = 0;
-  refine::HandOffRing* handoff_;
+  HandOffRing* handoff_;
   std::uint64_t handoff_segment_ = 0;
   bool handoff_break_ = false;  // the next handed-off sample starts a new segment
   std::uint64_t dropped_handoff_ = 0;

@@ -107,12 +107,4 @@ struct PublishedState {
   FaultHistory faults{};
 };
 
-// Commands travel from the socket server (the single producer) to the loop through an SpscRing.
-enum class CommandKind : std::uint8_t { reset, excitation_on, excitation_off, clear_fault };
-
-struct Command {
-  std::uint64_t seq = 0;
-  CommandKind kind = CommandKind::reset;
-};
-
 }  // namespace scp::daemon

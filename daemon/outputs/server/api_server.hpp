@@ -8,6 +8,7 @@
 #include <memory>
 
 #include "daemon/analysis/refine/refined_view.hpp"
+#include "daemon/core/commands.hpp"
 #include "daemon/core/published_state.hpp"
 #include "daemon/core/rt/latency_histogram.hpp"
 #include "daemon/core/rt/seqlock.hpp"
@@ -16,9 +17,6 @@
 #include "daemon/outputs/server/settings.hpp"
 
 namespace scp::daemon::server {
-
-inline constexpr std::size_t kCommandRingSize = 64;
-using CommandRing = rt::SpscRing<Command, kCommandRingSize>;
 
 class ApiServer {
  public:

@@ -1,0 +1,76 @@
+#include "daemon/service/checkpoints.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <filesystem>
+
+#include "daemon/service/driver_factory.hpp"
+#include "daemon/service/warm_start.hpp"
+
+namespace scp::daemon {
+
+std::string checkpoint_path(const config::DaemonConfig& cfg) {
+  return (std::filesystem::path(cfg.state.directory) / "estimator.state").string();
+}
+
+state::Checkpoint to_checkpoint(const EstimatorStateView& v, const std::string& driver,
+                                const std::string& actuator, const std::string& endpoint) {
+  state::Checkpoint c;
+  c.theta_hat = v.theta_hat;
+  c.info_mech = v.info_mech;
+  c.info_thermal = v.info_thermal;
+  c.eps2_mean = v.eps2_mean;
+  c.t = v.t;
+  c.driver = driver;
+  c.actuator = actuator;
+  c.endpoint = endpoint;
+  c.wall_time_unix = std::chrono::duration_cast<std::chrono::seconds>(
+                         std::chrono::system_clock::now().time_since_epoch())
+                         .count();
+  return c;
+}
+
+EstimatorStateView to_view(const state::Checkpoint& c) noexcept {
+  EstimatorStateView v;
+  v.theta_hat = c.theta_hat;
+  v.info_mech = c.info_mech;
+  v.info_thermal = c.info_thermal;
+  v.eps2_mean = c.eps2_mean;
+  v.t = c.t;
+  v.valid = true;
+  return v;
+}
+
+void save_checkpoint(const config::DaemonConfig& cfg, const EstimatorStateView& view,
+                     const std::string& driver_name) {
+  if (!view.valid) return;  // nothing learned yet: keep the previous checkpoint
+  try {
+    state::save_checkpoint(checkpoint_path(cfg), to_checkpoint(view, driver_name, cfg.actuator.name,
+                                                               driver_endpoint(cfg)));
+    spdlog::debug("checkpoint written to {}", checkpoint_path(cfg));
+  } catch (const std::exception& e) {
+    spdlog::error("checkpoint failed, the previous one is kept: {}", e.what());
+  }
+}
+
+void warm_start(const config::DaemonConfig& cfg, Loop& loop, const std::string& driver_name) {
+  if (!cfg.state.warm_start) return;
+  const std::string path = checkpoint_path(cfg);
+  std::string warning;
+  const auto checkpoint = state::load_checkpoint(path, warning);
+  if (!checkpoint) {
+    if (!warning.empty()) spdlog::warn("{}", warning);
+    return;
+  }
+  std::string why;
+  if (!checkpoint_fits(*checkpoint, cfg, driver_name, why)) {
+    spdlog::warn("refusing checkpoint {}: {}; starting cold", path, why);
+  } else if (loop.restore(to_state(to_view(*checkpoint)))) {
+    spdlog::info("warm start from {} (saved at loop time {:.1f} s)", path, checkpoint->t);
+  } else {
+    spdlog::warn("{}: unusable estimator state; starting cold", path);
+  }
+}
+
+}  // namespace scp::daemon
