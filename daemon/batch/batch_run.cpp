@@ -8,6 +8,7 @@
 #include <optional>
 #include <thread>
 
+#include "common/clock.hpp"
 #include "daemon/analysis/refine/refine_worker.hpp"
 #include "daemon/analysis/refine/refiner.hpp"
 #include "daemon/core/loop.hpp"
@@ -64,7 +65,7 @@ nlohmann::json run_batch(config::DaemonConfig cfg, const BatchOptions& options) 
             handoff.get());
   auto refine_now = [&](double t) {
     const refine::RefinedView& view =
-        refiner->fit(refine::paper_estimate(published->load()), t, refine::unix_time_ns());
+        refiner->fit(refine::paper_estimate(published->load()), t, clock::unix_ns());
     if (refined_ring) {
       while (!refined_ring->try_push(view)) std::this_thread::yield();  // the recorder catches up
     }

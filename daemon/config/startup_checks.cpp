@@ -6,19 +6,16 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cerrno>
-#include <cstdio>
 #include <cstring>
 #include <sstream>
+
+#include "common/checks.hpp"
 
 namespace scp::config {
 
 namespace {
 
-std::string number(double value) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g", value);
-  return text;
-}
+using checks::num;
 
 bool group_exists(const std::string& name) {
   std::vector<char> buffer(16384);
@@ -95,10 +92,10 @@ void check_suspicious_values(const DaemonConfig& cfg, std::vector<Finding>& out)
   const double t_max = cfg.safety.temperature_max_c;
   if (t_max >= kKelvinLike) {
     out.push_back({Finding::Severity::warning, "safety.temperature_max_c",
-                   number(t_max) +
+                   num(t_max) +
                        " °C is above the melting point of nylon (~250 °C): is it in "
                        "kelvin? " +
-                       number(t_max) + " K would be " + number(t_max - 273.15) +
+                       num(t_max) + " K would be " + num(t_max - 273.15) +
                        " °C; the key is in °C"});
   }
   const double v_max = cfg.excitation.settings.v_max;
@@ -106,8 +103,8 @@ void check_suspicious_values(const DaemonConfig& cfg, std::vector<Finding>& out)
   if (v_max > limit) {
     out.push_back(
         {Finding::Severity::warning, "excitation.v_max",
-         number(v_max) + " V is above safety.voltage_max_v " + number(limit) +
-             " V: the safety clamp cuts the excitation at " + number(limit) +
+         num(v_max) + " V is above safety.voltage_max_v " + num(limit) +
+             " V: the safety clamp cuts the excitation at " + num(limit) +
              " V, which distorts its spectrum; lower excitation.v_max or raise the limit"});
   }
 }

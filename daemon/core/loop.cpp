@@ -6,6 +6,7 @@
 #include <limits>
 #include <thread>
 
+#include "common/clock.hpp"
 #include "estimator/model.hpp"
 
 namespace scp::daemon {
@@ -19,29 +20,7 @@ std::array<double, N> to_array(const Vec& v) noexcept {
   return out;
 }
 
-// Wall-clock time for the record: a vDSO read, no system call, no allocation (real-time safe).
-std::int64_t unix_now_ns() noexcept {
-  timespec ts{};
-  ::clock_gettime(CLOCK_REALTIME, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
 }  // namespace
-
-// The wire's spelling (docs/protocol.md, STATUS.state), also in batch summaries and CSVs.
-const char* to_string(RunState state) noexcept {
-  switch (state) {
-    case RunState::starting:
-      return "starting";
-    case RunState::running:
-      return "running";
-    case RunState::fault:
-      return "fault";
-    case RunState::stopping:
-      return "stopping";
-  }
-  return "unknown";
-}
 
 Loop::Loop(const config::DaemonConfig& config, drivers::Driver& driver,
            rt::Seqlock<PublishedState>& published, CommandRing& commands, RecordRing* record,
@@ -264,7 +243,7 @@ void Loop::enter_fault(FaultKind kind, const Reason& reason) noexcept {
     ++faults_.count;
     faults_.last_reason = reason;
     faults_.last_t = cycle_t_;
-    faults_.last_unix_ns = unix_now_ns();
+    faults_.last_unix_ns = clock::unix_ns();
   } else if (kind == FaultKind::value && fault_kind_ == FaultKind::driver) {
     fault_reason_ = reason;  // a bad value while the link was down: now it must latch
     fault_kind_ = kind;
@@ -315,7 +294,7 @@ void Loop::publish(const drivers::CycleTime& now) noexcept {
   out.driver = driver_.stats();
   out.last_ack = ack_;
   out.handoff_dropped = dropped_handoff_;
-  out.unix_ns = unix_now_ns();
+  out.unix_ns = clock::unix_ns();
   unix_ns_ = out.unix_ns;
   out.recording = record_ring() != nullptr && !block_when_record_full_;
   out.record_dropped = dropped_rows_;

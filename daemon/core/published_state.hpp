@@ -5,6 +5,7 @@
 #include <array>
 #include <cstdint>
 
+#include "common/names.hpp"
 #include "drivers/driver.hpp"
 
 namespace scp::daemon {
@@ -16,7 +17,16 @@ enum class RunState : std::uint8_t {
   stopping,  // shutdown in progress; output at 0 V
 };
 
-const char* to_string(RunState state) noexcept;
+// The wire's spelling (docs/protocol.md, STATUS.state), also in batch summaries, recordings and
+// the journal.
+inline constexpr NameTable<RunState, 4> kRunStateNames{{{RunState::starting, "starting"},
+                                                        {RunState::running, "running"},
+                                                        {RunState::fault, "fault"},
+                                                        {RunState::stopping, "stopping"}}};
+
+constexpr const char* to_string(RunState state) noexcept {
+  return name_of(kRunStateNames, state);
+}
 
 // Long enough for a driver's reason with its endpoint and remedy (set_reason cuts at a word).
 inline constexpr std::size_t kReasonChars = 320;

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <filesystem>
 
+#include "common/clock.hpp"
 #include "daemon/service/driver_factory.hpp"
 #include "daemon/service/warm_start.hpp"
 
@@ -25,9 +26,7 @@ state::Checkpoint to_checkpoint(const EstimatorStateView& v, const std::string& 
   c.driver = driver;
   c.actuator = actuator;
   c.endpoint = endpoint;
-  c.wall_time_unix = std::chrono::duration_cast<std::chrono::seconds>(
-                         std::chrono::system_clock::now().time_since_epoch())
-                         .count();
+  c.wall_time_unix = clock::unix_ns() / clock::kNsPerSecond;
   return c;
 }
 

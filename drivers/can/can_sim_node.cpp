@@ -10,6 +10,7 @@
 #include <exception>
 #include <utility>
 
+#include "common/clock.hpp"
 #include "drivers/can/signal_codec.hpp"
 
 namespace scp::drivers::can {
@@ -26,11 +27,7 @@ canid_t wire_id(const CanSignal& sig) noexcept {
   return sig.extended ? (sig.frame_id | CAN_EFF_FLAG) : sig.frame_id;
 }
 
-double monotonic_s() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
+using clock::monotonic_s;
 
 bool in_window(double t, double after, double duration) noexcept {
   return after >= 0 && t >= after && (duration <= 0 || t < after + duration);

@@ -7,12 +7,13 @@
 #include <cerrno>
 #include <charconv>
 #include <cmath>
-#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string_view>
+
+#include "common/checks.hpp"
 
 namespace scp::drivers::replay {
 
@@ -25,11 +26,8 @@ enum Column : std::size_t { kT, kX, kXdot, kTemp, kV };
 // was applied over the whole interval.
 constexpr std::string_view kVoltageSinceColumn = "V_since";
 
-std::string num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
+// Values quoted from the file read back as the same doubles.
+using checks::exact_num;
 
 std::string_view trim(std::string_view s) {
   const auto* ws = " \t\r\n";
@@ -214,8 +212,9 @@ double parse_voltage_since(std::string_view text, double t, const std::string& p
   }
   if (since > t) {
     fail(path, line_no,
-         column_ref(kVoltageSinceColumn, field) + ": " + num(since) + " is after the row's t " +
-             num(t) + "; V_since is when the voltage read at t took effect, so it cannot be later");
+         column_ref(kVoltageSinceColumn, field) + ": " + exact_num(since) +
+             " is after the row's t " + exact_num(t) +
+             "; V_since is when the voltage read at t took effect, so it cannot be later");
   }
   return since;
 }
@@ -305,8 +304,8 @@ Trace parse_rows(std::istream& in, const std::string& path, std::size_t& header_
     }
     if (!trace.rows.empty() && !(v[kT] > trace.rows.back().t)) {
       fail(path, line_no,
-           column_ref("t", index[kT]) + ": time " + num(v[kT]) +
-               " is not after the previous row's " + num(trace.rows.back().t) + " (line " +
+           column_ref("t", index[kT]) + ": time " + exact_num(v[kT]) +
+               " is not after the previous row's " + exact_num(trace.rows.back().t) + " (line " +
                std::to_string(row_lines.back()) +
                "); rows must be in strictly increasing time order, without duplicates");
     }
@@ -357,8 +356,8 @@ Trace load_traces(const std::vector<std::string>& paths) {
       continue;
     }
     if (!all.rows.empty() && !(part.rows.front().t > all.rows.back().t)) {
-      throw TraceError(file + ": the first row's time " + num(part.rows.front().t) +
-                       " is not after the last time " + num(all.rows.back().t) + " of " +
+      throw TraceError(file + ": the first row's time " + exact_num(part.rows.front().t) +
+                       " is not after the last time " + exact_num(all.rows.back().t) + " of " +
                        last_with_rows +
                        "; give the files in time order (a rotated recording's names sort so), "
                        "each file of one run once");

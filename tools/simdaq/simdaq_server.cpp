@@ -20,6 +20,7 @@
 #include <thread>
 #include <vector>
 
+#include "common/clock.hpp"
 #include "drivers/modbus/register_codec.hpp"
 #include "drivers/modbus/register_map.hpp"
 #include "drivers/modbus/wire_time.hpp"
@@ -101,11 +102,7 @@ bool writes_registers(const std::uint8_t* q, int header, int first, int count) {
 
 using Clock = std::chrono::steady_clock;
 
-std::int64_t monotonic_ns() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
+using clock::monotonic_ns;
 
 // When the kernel received the bytes waiting on TCP socket `fd` (SO_TIMESTAMPNS, peeked), on
 // CLOCK_MONOTONIC; 0 if it gave no stamp. A DAQ's line receiver sees a request when it arrives;
@@ -123,22 +120,16 @@ std::int64_t received_ns(int fd) noexcept {
   if (recvmsg(fd, &msg, MSG_PEEK | MSG_DONTWAIT) <= 0) return 0;
   for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
     if (c->cmsg_level != SOL_SOCKET || c->cmsg_type != SCM_TIMESTAMPNS) continue;
-    timespec real{}, r{}, m{};
-    std::memcpy(&real, CMSG_DATA(c), sizeof real);
-    clock_gettime(CLOCK_REALTIME, &r);
-    clock_gettime(CLOCK_MONOTONIC, &m);
-    const auto ns = [](const timespec& t) {
-      return static_cast<std::int64_t>(t.tv_sec) * 1'000'000'000 + t.tv_nsec;
-    };
-    return ns(real) == 0 ? 0 : ns(real) - ns(r) + ns(m);
+    timespec stamp{};
+    std::memcpy(&stamp, CMSG_DATA(c), sizeof stamp);
+    const std::int64_t real_ns = clock::to_ns(stamp);
+    return real_ns == 0 ? 0 : real_ns - clock::unix_ns() + clock::monotonic_ns();
   }
   return 0;
 }
 
 void sleep_until_ns(std::int64_t ns) noexcept {
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(ns / 1'000'000'000);
-  ts.tv_nsec = static_cast<long>(ns % 1'000'000'000);
+  const timespec ts = clock::to_timespec(ns);
   while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
   }
 }

@@ -7,6 +7,8 @@
 #include <chrono>
 #include <cstring>
 
+#include "common/clock.hpp"
+
 namespace scp::daemon::refine {
 
 namespace {
@@ -35,12 +37,6 @@ void lower_priority() {
 
 PaperEstimate paper_estimate(const PublishedState& state) noexcept {
   return {state.estimate.theta_hat, state.estimate.sigma};
-}
-
-std::int64_t unix_time_ns() noexcept {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::system_clock::now().time_since_epoch())
-      .count();
 }
 
 RefineWorker::RefineWorker(const config::DaemonConfig& config, HandOffRing& ring,
@@ -78,7 +74,7 @@ void RefineWorker::run() noexcept {
         continue;
       }
       const PublishedState now = published_.load();
-      const RefinedView& view = refiner_.fit(paper_estimate(now), now.uptime_s, unix_time_ns());
+      const RefinedView& view = refiner_.fit(paper_estimate(now), now.uptime_s, clock::unix_ns());
       if (stop_.load(std::memory_order_acquire)) break;  // cancelled: not a result
       out_.store(view);
       spdlog::debug("refinement: fit {} of [{:.1f}, {:.1f}] s ({} samples) in {:.3f} s: {} ({})",

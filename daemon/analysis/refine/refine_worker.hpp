@@ -19,7 +19,6 @@ namespace scp::daemon::refine {
 
 // Loop time, wall clock and the paper law's estimate: what a fit needs from the published state.
 PaperEstimate paper_estimate(const PublishedState& state) noexcept;
-std::int64_t unix_time_ns() noexcept;
 
 class RefineWorker {
  public:

@@ -5,25 +5,12 @@
 #include <stdexcept>
 #include <string>
 
+#include "common/clock.hpp"
+
 namespace scp::rt {
-namespace {
 
-constexpr std::int64_t kNsPerSec = 1'000'000'000;
-
-timespec to_timespec(std::int64_t ns) noexcept {
-  timespec ts{};
-  ts.tv_sec = static_cast<time_t>(ns / kNsPerSec);
-  ts.tv_nsec = static_cast<long>(ns % kNsPerSec);
-  return ts;
-}
-
-}  // namespace
-
-std::int64_t monotonic_now_ns() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * kNsPerSec + ts.tv_nsec;
-}
+using clock::monotonic_ns;
+using clock::to_timespec;
 
 PeriodicTimer::PeriodicTimer(std::chrono::nanoseconds period) : period_ns_(period.count()) {
   if (period_ns_ <= 0) {
@@ -33,7 +20,7 @@ PeriodicTimer::PeriodicTimer(std::chrono::nanoseconds period) : period_ns_(perio
 }
 
 void PeriodicTimer::start() noexcept {
-  start_at(monotonic_now_ns());
+  start_at(monotonic_ns());
 }
 
 void PeriodicTimer::start_at(std::int64_t first_deadline_ns) noexcept {
@@ -47,7 +34,7 @@ void PeriodicTimer::start_at(std::int64_t first_deadline_ns) noexcept {
 WakeResult PeriodicTimer::wait_next() noexcept {
   if (!started_) start();
   WakeResult r;
-  std::int64_t now = monotonic_now_ns();
+  std::int64_t now = monotonic_ns();
   if (now > next_deadline_ns_ && next_cycle_ > 0) {
     r.overrun = true;
     // Whole periods already gone: skip them, serve the latest deadline that is not in the future.
@@ -60,7 +47,7 @@ WakeResult PeriodicTimer::wait_next() noexcept {
     // TIMER_ABSTIME: an interrupted sleep is simply resumed to the same deadline.
     while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &deadline, nullptr) == EINTR) {
     }
-    now = monotonic_now_ns();
+    now = monotonic_ns();
   }
   r.deadline_ns = next_deadline_ns_;
   r.cycle = next_cycle_;
@@ -73,7 +60,7 @@ WakeResult PeriodicTimer::wait_next() noexcept {
 }
 
 CycleEnd PeriodicTimer::mark_cycle_end() noexcept {
-  const std::int64_t now = monotonic_now_ns();
+  const std::int64_t now = monotonic_ns();
   CycleEnd e;
   e.exec_ns = now - last_wake_ns_;
   e.overran = now > last_deadline_ns_ + period_ns_;

@@ -24,9 +24,6 @@ struct CycleEnd {
   bool overran = false;  // the work ended after the next deadline
 };
 
-// Reads CLOCK_MONOTONIC in nanoseconds (vDSO, no system call, no allocation).
-std::int64_t monotonic_now_ns() noexcept;
-
 class PeriodicTimer {
  public:
   // Throws std::invalid_argument when period ≤ 0.

@@ -12,6 +12,8 @@
 #include <stdexcept>
 #include <vector>
 
+#include "common/clock.hpp"
+
 namespace scp::daemon {
 
 namespace {
@@ -26,8 +28,7 @@ constexpr const char* kHeader =
 
 // <directory>/<actuator>-20261123T083000.123Z.csv: names sort in time order.
 std::string recording_name(const std::string& directory, const std::string& actuator) {
-  const auto now = std::chrono::system_clock::now().time_since_epoch();
-  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(now).count();
+  const std::int64_t ms = clock::unix_ns() / 1'000'000;
   const std::time_t seconds = static_cast<std::time_t>(ms / 1000);
   std::tm tm{};
   gmtime_r(&seconds, &tm);

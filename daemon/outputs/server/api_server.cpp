@@ -26,6 +26,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "common/clock.hpp"
 #include "daemon/outputs/server/render.hpp"
 #include "daemon/outputs/server/request.hpp"
 
@@ -551,7 +552,7 @@ void ApiServer::Impl::handle_line(std::uint64_t id, Client& client, std::string_
                     ? std::string(name) + (request.enable ? " on" : " off")
                     : std::string(name);
   record.peer = client.peer;
-  record.unix_ns = wall_clock_ns();
+  record.unix_ns = clock::unix_ns();
   if (!client.peer || !is_privileged(*client.peer, policy)) {
     const std::string denied = permission_denied_message(name, policy);
     send(client, render_error(denied));

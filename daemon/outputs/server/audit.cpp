@@ -9,28 +9,6 @@
 
 namespace scp::daemon::server {
 
-const char* outcome_name(CommandOutcome outcome) noexcept {
-  switch (outcome) {
-    case CommandOutcome::done:
-      return "done";
-    case CommandOutcome::failed:
-      return "failed";
-    case CommandOutcome::refused:
-      return "refused";
-    case CommandOutcome::busy:
-      return "busy";
-    case CommandOutcome::timeout:
-      return "timeout";
-  }
-  return "unknown";
-}
-
-std::int64_t wall_clock_ns() noexcept {
-  timespec ts{};
-  ::clock_gettime(CLOCK_REALTIME, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
 std::string audit_text(const CommandRecord& record) {
   std::string who = "a peer of unknown identity";
   if (record.peer) {

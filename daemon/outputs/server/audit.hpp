@@ -11,6 +11,7 @@
 #include <optional>
 #include <string>
 
+#include "common/names.hpp"
 #include "daemon/outputs/server/peer_auth.hpp"
 
 namespace scp::daemon::server {
@@ -23,7 +24,16 @@ enum class CommandOutcome {
   timeout,  // the loop did not answer in time
 };
 
-const char* outcome_name(CommandOutcome outcome) noexcept;
+inline constexpr NameTable<CommandOutcome, 5> kCommandOutcomeNames{
+    {{CommandOutcome::done, "done"},
+     {CommandOutcome::failed, "failed"},
+     {CommandOutcome::refused, "refused"},
+     {CommandOutcome::busy, "busy"},
+     {CommandOutcome::timeout, "timeout"}}};
+
+constexpr const char* outcome_name(CommandOutcome outcome) noexcept {
+  return name_of(kCommandOutcomeNames, outcome);
+}
 
 struct CommandRecord {
   std::string name;                  // "excitation off", "reset", "clear-fault"
@@ -32,8 +42,6 @@ struct CommandRecord {
   CommandOutcome outcome = CommandOutcome::done;
   std::string message;  // the loop's or the server's words
 };
-
-std::int64_t wall_clock_ns() noexcept;
 
 // "command 'excitation off' from uid 1000 gid 1000 pid 4242: done (excitation off: ...)"
 std::string audit_text(const CommandRecord& record);

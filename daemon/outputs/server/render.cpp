@@ -144,20 +144,6 @@ void put_refinement(json& out, const EstimateView& estimate, const refine::Refin
   out["refined"] = o;
 }
 
-const char* state_name(RunState state) noexcept {
-  switch (state) {
-    case RunState::starting:
-      return "starting";
-    case RunState::running:
-      return "running";
-    case RunState::fault:
-      return "fault";
-    case RunState::stopping:
-      return "stopping";
-  }
-  return "unknown";
-}
-
 namespace {
 
 // The fine histogram's non-empty buckets as [lower_ns, upper_ns, count] (upper exclusive): a
@@ -208,7 +194,7 @@ std::string render_status(const PublishedState& state, const ServerInfo& info,
   json out = {{"class", "STATUS"}, {"release", info.release}, {"driver", info.driver}};
   if (!info.actuator.empty()) out["actuator"] = info.actuator;
   if (!info.config_file.empty()) out["config_file"] = info.config_file;
-  out["state"] = state_name(state.state);
+  out["state"] = to_string(state.state);
   const std::string_view reason = fixed_text(state.fault_reason);
   if (!reason.empty()) out["fault_reason"] = std::string(reason);
   if (state.state == RunState::starting && state.awaiting_device) {

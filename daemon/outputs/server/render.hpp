@@ -50,7 +50,4 @@ void put_fault_history(nlohmann::json& out, const FaultHistory& faults);
 // Lower edge (µs) of lateness histogram bin i: 0, 1, 2, 4, ..., 2^30 (published_state.hpp).
 double histogram_lower_edge_us(std::size_t bin) noexcept;
 
-// The RunState names used on the wire.
-const char* state_name(RunState state) noexcept;
-
 }  // namespace scp::daemon::server
