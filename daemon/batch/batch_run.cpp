@@ -34,7 +34,7 @@ nlohmann::json run_batch(config::DaemonConfig cfg, const BatchOptions& options) 
     replay = replay_driver.get();
     driver = std::move(replay_driver);
   } else {
-    if (cfg.driver.type == "modbus") {
+    if (cfg.driver.type == config::DriverType::modbus) {
       // No wall-clock deadline offline: wait as long as a lock-step peer needs.
       cfg.driver.modbus.response_timeout_s = cfg.driver.modbus.offline_response_timeout_s;
       cfg.driver.modbus.enforce_period_budget = false;

@@ -14,9 +14,12 @@ void derive_settings(DaemonConfig& cfg) {
   est.voltage_max = std::max(cfg.safety.voltage_max_v, 1e-9) * 1.5;
   cfg.driver.sim.ambient_c = cfg.actuator.ambient_c;
   // The simulated plant's instants are exact; every real link's need estimating.
-  cfg.refine.estimate_link_timing = cfg.refine.link_timing == "estimate" ||
-                                    (cfg.refine.link_timing == "auto" && cfg.driver.type != "sim");
-  if (cfg.excitation.profile == "paper") cfg.excitation.settings = excitation::paper_excitation();
+  cfg.refine.estimate_link_timing =
+      cfg.refine.link_timing == LinkTiming::estimate ||
+      (cfg.refine.link_timing == LinkTiming::automatic && cfg.driver.type != DriverType::sim);
+  if (cfg.excitation.profile == ExcitationProfile::paper) {
+    cfg.excitation.settings = excitation::paper_excitation();
+  }
 }
 
 }  // namespace scp::config

@@ -36,7 +36,7 @@ void check_group(const DaemonConfig& cfg, std::vector<Finding>& out) {
 }
 
 void check_replay(const DaemonConfig& cfg, std::vector<Finding>& out) {
-  if (cfg.driver.type != "replay") return;
+  if (cfg.driver.type != DriverType::replay) return;
   const std::string& file = cfg.driver.replay.file;
   if (::access(file.c_str(), R_OK) != 0) {
     out.push_back({Finding::Severity::error, "driver.replay.file",

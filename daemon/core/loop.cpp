@@ -332,7 +332,7 @@ bool Loop::estimator_input(drivers::Sample& fed) noexcept {
     fed = sample_;
     return true;
   }
-  if (config_.driver.velocity.method == "central_difference") {
+  if (config_.driver.velocity.method == config::VelocityMethod::central_difference) {
     return central_difference_.push(sample_, fed);
   }
   fed = sample_;

@@ -10,7 +10,7 @@ namespace {
 
 std::string rotation_text(const config::RecordingSettings& s) {
   return fmt::format("a new file every {} MiB or {} s, keeping {}, compress {}", s.rotate_size_mib,
-                     s.rotate_interval_s, s.keep_files, s.compress);
+                     s.rotate_interval_s, s.keep_files, config::to_string(s.compress));
 }
 
 void finish_logged(Recorder& recorder) {

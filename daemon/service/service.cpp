@@ -69,8 +69,8 @@ server::ServerSettings server_settings(const config::SocketSettings& socket) {
   s.socket_path = socket.path;
   s.group = socket.group;
   s.mode = socket.mode;
-  s.max_clients = static_cast<std::size_t>(socket.max_clients);
-  s.max_line = static_cast<std::size_t>(socket.max_line_bytes);
+  s.max_clients = socket.max_clients;
+  s.max_line = socket.max_line_bytes;
   s.idle_timeout_s = socket.idle_timeout_s;
   return s;
 }

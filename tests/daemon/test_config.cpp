@@ -27,7 +27,7 @@ std::string error_of(const std::string& yaml) {
 TEST(Config, ShippedFilesLoad) {
   for (const char* name : {"paper.yaml", "sim.yaml"}) {
     const auto cfg = load_config_file(std::string(SCP_SOURCE_DIR) + "/config/" + name);
-    EXPECT_EQ(cfg.driver.type, "sim") << name;
+    EXPECT_EQ(cfg.driver.type, DriverType::sim) << name;
   }
   const auto paper = load_config_file(std::string(SCP_SOURCE_DIR) + "/config/paper.yaml");
   EXPECT_EQ(paper.estimator.beta, 3.0);
@@ -39,7 +39,7 @@ TEST(Config, ShippedFilesLoad) {
 TEST(Config, EmptyDocumentGivesDefaults) {
   const auto cfg = load_config_text("", "empty.yaml");
   EXPECT_EQ(cfg.loop.period_s, 0.001);
-  EXPECT_EQ(cfg.driver.type, "sim");
+  EXPECT_EQ(cfg.driver.type, DriverType::sim);
 }
 
 // The loop's tests start from the structs' defaults completed by derive_settings, not from the
@@ -145,6 +145,28 @@ TEST(Config, WrongTypesAndBadYamlAreErrors) {
   EXPECT_NE(error_of("excitation:\n  sines:\n    - {amplitude_v: 1, frequency_hz: 0}\n")
                 .find("excitation.sines[0].frequency_hz"),
             std::string::npos);
+}
+
+// Choices are read into enumerations: a name outside the table is refused with the key, the line
+// and every allowed name; every allowed name reads as its own value.
+TEST(Config, ChoicesAreEnumerationsThatNameTheAllowedValues) {
+  const std::string e = error_of("recording:\n  compress: zstd\n");
+  EXPECT_NE(e.find("test.yaml:2"), std::string::npos) << e;
+  EXPECT_NE(e.find("recording.compress"), std::string::npos) << e;
+  EXPECT_NE(e.find("'zstd' is not allowed; use one of none|gzip"), std::string::npos) << e;
+  for (const auto& [value, name] : kVelocityMethods) {
+    const auto cfg =
+        load_config_text("driver: {velocity: {method: " + std::string(name) + "}}", "choice.yaml");
+    EXPECT_EQ(cfg.driver.velocity.method, value) << name;
+  }
+  for (const auto& [value, name] : kLinkTimings) {
+    const auto cfg =
+        load_config_text("refine: {link_timing: " + std::string(name) + "}", "choice.yaml");
+    EXPECT_EQ(cfg.refine.link_timing, value) << name;
+  }
+  for (const auto& [value, name] : kDriverTypes) {
+    EXPECT_STREQ(to_string(value), name);
+  }
 }
 
 TEST(Config, CrossKeyChecks) {

@@ -186,7 +186,7 @@ int main(int argc, char** argv) {
     options.map = cfg.driver.modbus;
     options.sim = cfg.driver.sim;
     options.period_s = cfg.loop.period_s;
-    if (transport.empty() && cfg.driver.type == "can") transport = "can";
+    if (transport.empty() && cfg.driver.type == scp::config::DriverType::can) transport = "can";
     if (period > 0) options.period_s = period;
 
     if (!transport.empty()) {

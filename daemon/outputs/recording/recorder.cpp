@@ -67,7 +67,7 @@ Recorder::Recorder(const config::RecordingSettings& settings, const std::string&
                              " (does recording.directory exist, and may the daemon write there? "
                              "Under systemd: ReadWritePaths=)");
   }
-  if (settings_.compress == "gzip") compressor_ = std::make_unique<Compressor>();
+  if (settings_.compress == config::Compression::gzip) compressor_ = std::make_unique<Compressor>();
 }
 
 void Recorder::start(std::uint64_t dropped_marked) {
@@ -165,9 +165,9 @@ std::vector<std::string> recordings_of(const std::string& directory, const std::
 // Deletes this actuator's oldest recordings beyond recording.keep_files (names sort in time); a
 // compressed recording counts as one, like the plain file it replaced.
 void Recorder::apply_retention() {
-  if (settings_.keep_files <= 0) return;
+  if (settings_.keep_files == 0) return;
   const std::vector<std::string> mine = recordings_of(settings_.directory, actuator_);
-  const auto keep = static_cast<std::size_t>(settings_.keep_files);
+  const std::size_t keep = settings_.keep_files;
   std::error_code ec;
   for (std::size_t i = 0; i + keep < mine.size(); ++i) {
     std::filesystem::remove(mine[i], ec);

@@ -168,8 +168,8 @@ int main(int argc, char** argv) {
                      check_path.c_str());
         return scp::cli::kExitConfig;
       }
-      std::cout << check_path << ": valid (driver " << cfg.driver.type << ", period "
-                << cfg.loop.period_s << " s)\n";
+      std::cout << check_path << ": valid (driver " << scp::config::to_string(cfg.driver.type)
+                << ", period " << cfg.loop.period_s << " s)\n";
       return 0;
     }
     auto cfg = scp::config::load_config_file(config_path);
