@@ -75,6 +75,9 @@ void put_wall_clock(json& out, std::int64_t unix_ns) {
   out["unix_ns"] = unix_ns;
 }
 
+namespace {
+
+// STATUS "fault_count", "recoveries", "faults_cleared" and, after the first fault, "last_fault".
 void put_fault_history(json& out, const FaultHistory& faults) {
   out["fault_count"] = faults.count;
   out["recoveries"] = faults.recoveries;
@@ -86,6 +89,8 @@ void put_fault_history(json& out, const FaultHistory& faults) {
   out["last_fault"] = last;
 }
 
+// The members the refinement adds to ESTIMATE: "paper_biased", "best" and, once a fit exists,
+// "refined" (docs/protocol.md). `refined` may be null.
 void put_refinement(json& out, const EstimateView& estimate, const refine::RefinedView* refined,
                     double now_t) {
   const bool fitted = refined != nullptr && refined->valid;
@@ -143,6 +148,8 @@ void put_refinement(json& out, const EstimateView& estimate, const refine::Refin
   }
   out["refined"] = o;
 }
+
+}  // namespace
 
 namespace {
 
@@ -279,6 +286,10 @@ std::string render_status(const PublishedState& state, const ServerInfo& info,
 
 std::string render_estimate(const EstimateView& estimate, const refine::RefinedView* refined,
                             double now_t) {
+  return line(estimate_json(estimate, refined, now_t));
+}
+
+json estimate_json(const EstimateView& estimate, const refine::RefinedView* refined, double now_t) {
   json out = {{"class", "ESTIMATE"}};
   put_finite(out, "t", estimate.t);
   put_wall_clock(out, estimate.unix_ns);
@@ -311,7 +322,7 @@ std::string render_estimate(const EstimateView& estimate, const refine::RefinedV
     out["physical"] = physical;
   }
   put_refinement(out, estimate, refined, now_t);
-  return line(out);
+  return out;
 }
 
 }  // namespace scp::daemon::server

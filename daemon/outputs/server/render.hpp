@@ -35,17 +35,14 @@ std::string render_status(const PublishedState& state, const ServerInfo& info,
 // `now_t` is the loop time (PublishedState::uptime_s): the age of the refined fit decides `best`.
 std::string render_estimate(const EstimateView& estimate,
                             const refine::RefinedView* refined = nullptr, double now_t = 0.0);
+// The ESTIMATE object itself, which the batch summary extends (daemon/batch/).
+nlohmann::json estimate_json(const EstimateView& estimate, const refine::RefinedView* refined,
+                             double now_t);
 
-// The members the refinement adds to ESTIMATE and to the batch summary: "paper_biased", "best"
-// and, once a fit exists, "refined" (docs/protocol.md). `refined` may be null.
-void put_refinement(nlohmann::json& out, const EstimateView& estimate,
-                    const refine::RefinedView* refined, double now_t);
 // "2026-11-23T08:30:00.123Z"
 std::string utc_time(std::int64_t unix_ns);
 // "utc" (ISO 8601, ms) and "unix_ns" (CLOCK_REALTIME, ns): omitted while unix_ns is 0.
 void put_wall_clock(nlohmann::json& out, std::int64_t unix_ns);
-// STATUS "fault_count", "recoveries", "faults_cleared" and, after the first fault, "last_fault".
-void put_fault_history(nlohmann::json& out, const FaultHistory& faults);
 
 // Lower edge (µs) of lateness histogram bin i: 0, 1, 2, 4, ..., 2^30 (published_state.hpp).
 double histogram_lower_edge_us(std::size_t bin) noexcept;
