@@ -46,32 +46,61 @@ Loop::Loop(const config::DaemonConfig& config, drivers::Driver& driver,
 CycleResult Loop::cycle(const drivers::CycleTime& now) noexcept {
   ++cycles_;
   cycle_t_ = now.t;
-  if (safety_cell_ != nullptr && safety_cell_->version() != safety_version_) {
-    const std::uint64_t version = safety_cell_->version();
-    if (safety_cell_->try_load(safety_)) safety_version_ = version;
-  }
+  take_safety_limits();
   take_excitation();
-  handle_commands(now);
+  handle_commands();
 
   // 1. Read.
-  drivers::Sample sample;
-  const drivers::IoResult read = driver_.read(now, sample);
-  sample_fresh_ = false;
-  if (read.status == drivers::IoStatus::end_of_data) {
+  bool awaiting = false;
+  const drivers::IoStatus read = read_sample(now, awaiting);
+  if (read == drivers::IoStatus::end_of_data) {
     shutdown();
     publish(now);
     return CycleResult::end_of_data;
   }
+  // 2. Safety: limits on the sample and staleness, independent of the estimator.
+  check_safety(now, read, awaiting);
+  // 3. Estimate.
+  drivers::Sample fed;
+  const bool feed = estimate(fed);
+  // 4. Excitation and 5. the safety clamp: 0 V unless running.
+  const double command = state_ == RunState::running && excitation_enabled_
+                             ? clamp_voltage(active_excitation_->voltage(now.t), safety_)
+                             : 0.0;
+  // 6. Write.
+  write(command);
+  // 7. Publish.
+  publish(now);
+  if (feed) {
+    if (RecordRing* ring = record_ring()) record(fed, *ring);
+  }
+  return CycleResult::ok;
+}
+
+// A reload's limits, from the start of the cycle after its store (one attempt without waiting;
+// a torn read waits for the next cycle).
+void Loop::take_safety_limits() noexcept {
+  if (safety_cell_ == nullptr || safety_cell_->version() == safety_version_) return;
+  const std::uint64_t version = safety_cell_->version();
+  if (safety_cell_->try_load(safety_)) safety_version_ = version;
+}
+
+drivers::IoStatus Loop::read_sample(const drivers::CycleTime& now, bool& awaiting) noexcept {
+  drivers::Sample sample;
+  const drivers::IoResult read = driver_.read(now, sample);
+  sample_fresh_ = false;
+  if (read.status == drivers::IoStatus::end_of_data) return read.status;
   driver_ok_ = read.status != drivers::IoStatus::error;
   // Until the device's first fresh reading it is awaited, not faulted: a DAQ absent or slow at
   // start (or still booting) is the ordinary start of a bench. The output is 0 V either way
   // (STARTING); the service bounds the wait with driver.start_timeout_s.
-  const bool awaiting = !have_fresh_ && state_ == RunState::starting;
+  awaiting = !have_fresh_ && state_ == RunState::starting;
   if (read.status == drivers::IoStatus::error) {
+    const char* reason = read.reason[0] ? read.reason : "driver read failed";
     if (awaiting) {
-      set_reason(waiting_reason_, read.reason[0] ? read.reason : "driver read failed");
+      set_reason(waiting_reason_, reason);
     } else {
-      enter_fault(FaultKind::driver, read.reason[0] ? read.reason : "driver read failed");
+      enter_fault(FaultKind::driver, reason);
     }
   } else if (read.status == drivers::IoStatus::ok) {
     if (xdot_ == Xdot::unknown) {
@@ -83,8 +112,11 @@ CycleResult Loop::cycle(const drivers::CycleTime& now) noexcept {
     last_fresh_t_ = now.t;
     set_reason(waiting_reason_, "");
   }
+  return read.status;
+}
 
-  // 2. Safety: limits on the sample and staleness, independent of the estimator.
+void Loop::check_safety(const drivers::CycleTime& now, drivers::IoStatus read,
+                        bool awaiting) noexcept {
   if (sample_fresh_) {
     Reason why{};
     sample_valid_ = check_sample(sample_, safety_, xdot_ == Xdot::measured, why);
@@ -95,7 +127,7 @@ CycleResult Loop::cycle(const drivers::CycleTime& now) noexcept {
     }
     if (!sample_valid_) enter_fault(FaultKind::value, why);
   } else if (awaiting) {
-    if (read.status != drivers::IoStatus::error && now.t > safety_.stale_timeout_s) {
+    if (read != drivers::IoStatus::error && now.t > safety_.stale_timeout_s) {
       set_reason(waiting_reason_, "the device sends no data yet");
     }
   } else if (state_ != RunState::fault) {
@@ -112,51 +144,42 @@ CycleResult Loop::cycle(const drivers::CycleTime& now) noexcept {
   if (state_ == RunState::starting && sample_fresh_ && sample_valid_ && driver_ok_) {
     state_ = RunState::running;  // fresh readings arrived: the output may leave 0 V
   }
+}
 
-  // 3. Estimate. The estimator rejects non-finite and out-of-range samples by itself. It learns
-  // only while running: a faulted bench at 0 V only cools, which excites nothing, and with
-  // forgetting θ̂ would drift along the unexcited directions (measured: θ̂1..θ̂4 off by 60-99 %
-  // after an 1800 s latched fault). θ̂ and R are held; the gap restarts the filters on resumption.
-  drivers::Sample fed;
+// The estimator rejects non-finite and out-of-range samples by itself. It learns only while
+// running: a faulted bench at 0 V only cools, which excites nothing, and with forgetting θ̂ would
+// drift along the unexcited directions (docs/numerics.md, "A latched fault"). θ̂ and R are held;
+// the gap restarts the filters on resumption. True when `fed` went to the estimator.
+bool Loop::estimate(drivers::Sample& fed) noexcept {
   const bool feed = sample_fresh_ && estimator_input(fed) && state_ == RunState::running;
-  if (feed) {
-    // fed.t is when the sample was taken and fed.voltage_since when its voltage took effect, as
-    // the driver stamped them (the deadline and −∞ unless it knows better).
-    const estimator::Measurement m{fed.t,       fed.x,
-                                   fed.xdot,    fed.temperature - config_.actuator.ambient_c,
-                                   fed.voltage, fed.voltage_since};
-    estimator_.update(m);
-    if (cycles_ % kStatePublishCycles == 0) estimator_state_.store(to_view(estimator_.state()));
-    hand_off(fed);
-  } else if (state_ != RunState::running) {
-    handoff_break_ = true;  // the model cannot be simulated across a stretch not fed
+  if (!feed) {
+    if (state_ != RunState::running) handoff_break_ = true;  // nothing to simulate across
+    return false;
   }
+  // fed.t is when the sample was taken and fed.voltage_since when its voltage took effect, as
+  // the driver stamped them (the deadline and −∞ unless it knows better).
+  const estimator::Measurement m{fed.t,       fed.x,
+                                 fed.xdot,    fed.temperature - config_.actuator.ambient_c,
+                                 fed.voltage, fed.voltage_since};
+  estimator_.update(m);
+  if (cycles_ % kStatePublishCycles == 0) estimator_state_.store(to_view(estimator_.state()));
+  hand_off(fed);
+  return true;
+}
 
-  // 4. Excitation and 5. the safety clamp: 0 V unless running.
-  double command = 0.0;
-  if (state_ == RunState::running && excitation_enabled_) {
-    command = clamp_voltage(active_excitation_->voltage(now.t), safety_);
-  }
-
-  // 6. Write.
-  if (state_ == RunState::running) {
-    const drivers::IoResult written = driver_.write_voltage(command);
-    if (written.status == drivers::IoStatus::error) {
-      enter_fault(FaultKind::driver, written.reason[0] ? written.reason : "driver write failed");
-      command = 0.0;
-    }
-  } else {
+// Sends `command` while running, else 0 V; a failed write faults and 0 V is what counts.
+void Loop::write(double command) noexcept {
+  if (state_ != RunState::running) {
     driver_.safe_state();
+    voltage_command_ = 0.0;
+    return;
+  }
+  const drivers::IoResult written = driver_.write_voltage(command);
+  if (written.status == drivers::IoStatus::error) {
+    enter_fault(FaultKind::driver, written.reason[0] ? written.reason : "driver write failed");
     command = 0.0;
   }
   voltage_command_ = command;
-
-  // 7. Publish.
-  publish(now);
-  if (feed) {
-    if (RecordRing* ring = record_ring()) record(fed, *ring);
-  }
-  return CycleResult::ok;
 }
 
 void Loop::take_excitation() noexcept {
@@ -171,7 +194,7 @@ void Loop::take_excitation() noexcept {
   }
 }
 
-void Loop::handle_commands(const drivers::CycleTime& now) noexcept {
+void Loop::handle_commands() noexcept {
   Command command;
   while (commands_.try_pop(command)) {
     ack_.seq = command.seq;
@@ -214,7 +237,6 @@ void Loop::handle_commands(const drivers::CycleTime& now) noexcept {
       }
     }
   }
-  (void)now;
 }
 
 bool Loop::cause_gone(Reason& why) const noexcept {

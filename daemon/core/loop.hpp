@@ -79,7 +79,14 @@ class Loop {
   static constexpr std::uint64_t kStatePublishCycles = 100;
 
  private:
-  void handle_commands(const drivers::CycleTime& now) noexcept;
+  void take_safety_limits() noexcept;
+  void take_excitation() noexcept;
+  void handle_commands() noexcept;
+  // The cycle's steps, in the order cycle() calls them.
+  drivers::IoStatus read_sample(const drivers::CycleTime& now, bool& awaiting) noexcept;
+  void check_safety(const drivers::CycleTime& now, drivers::IoStatus read, bool awaiting) noexcept;
+  bool estimate(drivers::Sample& fed) noexcept;
+  void write(double command) noexcept;
   // A driver fault (failed transaction, lost link, stale data) clears by itself once fresh valid
   // readings have flowed for safety.recover_after_s; a value fault (non-finite reading, a limit
   // exceeded) latches until clear-fault.
@@ -92,7 +99,6 @@ class Loop {
   void hand_off(const drivers::Sample& fed) noexcept;
   bool estimator_input(drivers::Sample& fed) noexcept;
   bool cause_gone(Reason& why) const noexcept;
-  void take_excitation() noexcept;
   RecordRing* record_ring() const noexcept {
     return record_source_ != nullptr ? record_source_->load(std::memory_order_acquire) : record_;
   }
