@@ -14,6 +14,7 @@
 #include "daemon/config/daemon_config.hpp"
 #include "daemon/config/keys_can.hpp"
 #include "daemon/config/keys_modbus.hpp"
+#include "daemon/programs/cli/instance_names.hpp"
 #include "drivers/modbus/timing.hpp"
 #include "drivers/sim/sim_driver.hpp"
 #include "excitation/excitation.hpp"
@@ -51,10 +52,7 @@ void declare_actuator(Binder actuator, ActuatorSettings& out) {
                 "name of this actuator: kept in its checkpoint (a warm start from another "
                 "actuator's checkpoint is refused), the actuator label of its metrics, shown in "
                 "STATUS; give each actuator on a PC its own (letters, digits, '.', '_', '-')");
-  if (out.name.empty() || out.name.size() > 64 ||
-      out.name.find_first_not_of(
-          "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789._-") !=
-          std::string::npos) {
+  if (!cli::is_plain_name(out.name)) {
     actuator.fail("name", "'" + out.name +
                               "' is not a name of 1-64 letters, digits, '.', '_' or '-'; choose "
                               "one such as bench-a");

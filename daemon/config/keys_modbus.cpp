@@ -94,6 +94,48 @@ void declare_signal(Binder& signals, std::string_view name, std::string_view doc
   }
 }
 
+// The holding register(s) of the voltage command; 0 V must be writable (the safe state).
+void declare_command(Binder& m, CommandRegister& c) {
+  const bool written = m.present("command");
+  Binder b = m.section("command", "holding register(s) the voltage command is written to");
+  b.integer("address", c.address, 0, 0, 65535, "0-based holding register address");
+  declare_format(b, c.type, c.word_order, RegisterType::float32, written);
+  b.number("scale", c.scale, 1.0, -1e12, 1e12, "raw = (V - offset) / scale, rounded for integers");
+  b.number("offset", c.offset, 0.0, -1e12, 1e12, "V subtracted before scaling");
+  b.number("min", c.min_volts, 0.0, -1000.0, 1000.0, "lowest voltage the DAQ output accepts, V");
+  b.number("max", c.max_volts, 10.0, -1000.0, 1000.0, "highest voltage the DAQ output accepts, V");
+  std::string function;
+  b.choice("function", function, "auto", {"auto", "6", "16"},
+           "Modbus function of the write: auto = 6 (write single register) for a 16-bit "
+           "command, 16 (write multiple registers) for a 32-bit one; 16 for devices that "
+           "accept only function 16");
+  c.function = function == "6" ? 6 : function == "16" ? 16 : 0;
+  if (c.function == 6 && drivers::modbus::register_count(c.type) != 1) {
+    b.fail("function", "function 6 writes one register, but command.type " +
+                           std::string(drivers::modbus::type_name(c.type)) +
+                           " spans two; use 16 or auto");
+  }
+  if (c.scale == 0.0) b.fail("scale", "must not be 0");
+  if (c.max_volts < c.min_volts) b.fail("max", "must be at least command.min");
+  if (c.min_volts > 0.0 || c.max_volts < 0.0) {
+    b.fail(c.min_volts > 0.0 ? "min" : "max",
+           "0 V must lie in [min, max]: the safe state writes 0 V");
+  }
+  std::array<std::uint16_t, 2> regs{};
+  for (const double v : {c.min_volts, 0.0, c.max_volts}) {
+    if (!drivers::modbus::encode_command(c, v, regs.data())) {
+      b.fail(c.scale != 1.0 || c.offset != 0.0 ? "scale" : "type",
+             std::to_string(v) + " V does not fit " +
+                 std::string(drivers::modbus::type_name(c.type)) + " with scale " +
+                 std::to_string(c.scale) + " and offset " + std::to_string(c.offset) +
+                 "; change command.type, scale or min/max");
+    }
+  }
+  if (c.address + drivers::modbus::register_count(c.type) - 1 > 65535) {
+    b.fail("address", "the command's registers run past 65535");
+  }
+}
+
 }  // namespace
 
 void declare_modbus_keys(Binder& m, ModbusSettings& out) {
@@ -186,49 +228,7 @@ void declare_modbus_keys(Binder& m, ModbusSettings& out) {
   declare_signal(signals, "voltage",
                  "read-back of the applied voltage, V (optional; absent: the last command)",
                  out.voltage, false, any);
-  {
-    CommandRegister& c = out.command;
-    const bool written = m.present("command");
-    Binder b = m.section("command", "holding register(s) the voltage command is written to");
-    b.integer("address", c.address, 0, 0, 65535, "0-based holding register address");
-    declare_format(b, c.type, c.word_order, RegisterType::float32, written);
-    b.number("scale", c.scale, 1.0, -1e12, 1e12,
-             "raw = (V - offset) / scale, rounded for integers");
-    b.number("offset", c.offset, 0.0, -1e12, 1e12, "V subtracted before scaling");
-    b.number("min", c.min_volts, 0.0, -1000.0, 1000.0, "lowest voltage the DAQ output accepts, V");
-    b.number("max", c.max_volts, 10.0, -1000.0, 1000.0,
-             "highest voltage the DAQ output accepts, V");
-    std::string function;
-    b.choice("function", function, "auto", {"auto", "6", "16"},
-             "Modbus function of the write: auto = 6 (write single register) for a 16-bit "
-             "command, 16 (write multiple registers) for a 32-bit one; 16 for devices that "
-             "accept only function 16");
-    c.function = function == "6" ? 6 : function == "16" ? 16 : 0;
-    if (c.function == 6 && drivers::modbus::register_count(c.type) != 1) {
-      b.fail("function", "function 6 writes one register, but command.type " +
-                             std::string(drivers::modbus::type_name(c.type)) +
-                             " spans two; use 16 or auto");
-    }
-    if (c.scale == 0.0) b.fail("scale", "must not be 0");
-    if (c.max_volts < c.min_volts) b.fail("max", "must be at least command.min");
-    if (c.min_volts > 0.0 || c.max_volts < 0.0) {
-      b.fail(c.min_volts > 0.0 ? "min" : "max",
-             "0 V must lie in [min, max]: the safe state writes 0 V");
-    }
-    std::array<std::uint16_t, 2> regs{};
-    for (const double v : {c.min_volts, 0.0, c.max_volts}) {
-      if (!drivers::modbus::encode_command(c, v, regs.data())) {
-        b.fail(c.scale != 1.0 || c.offset != 0.0 ? "scale" : "type",
-               std::to_string(v) + " V does not fit " +
-                   std::string(drivers::modbus::type_name(c.type)) + " with scale " +
-                   std::to_string(c.scale) + " and offset " + std::to_string(c.offset) +
-                   "; change command.type, scale or min/max");
-      }
-    }
-    if (c.address + drivers::modbus::register_count(c.type) - 1 > 65535) {
-      b.fail("address", "the command's registers run past 65535");
-    }
-  }
+  declare_command(m, out.command);
   if (const auto clash = drivers::modbus::find_overlap(out)) {
     const auto& [a, b] = *clash;
     // Name the later entry at its own line; "signals.x" is the key "x" of the signals section.

@@ -11,25 +11,10 @@ const config::DaemonConfig& defaults() {
 
 }  // namespace
 
-std::string instance_name_problem(const std::string& name) {
-  static constexpr const char* kAllowed =
-      "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789._-";
-  if (name.empty() || name.size() > 64 || name == "." || name == ".." ||
-      name.find_first_not_of(kAllowed) != std::string::npos) {
-    return "instance name '" + name +
-           "' must be 1-64 letters, digits, '.', '_' or '-' (it becomes a file name)";
-  }
-  return {};
-}
-
-std::string instance_socket(const std::string& name) {
-  return std::string(kRunDirectory) + "/" + name + ".sock";
-}
-
 std::vector<std::string> apply_instance(config::DaemonConfig& config, const std::string& name) {
   std::vector<std::string> warnings;
   const std::string socket = instance_socket(name);
-  const std::string state = std::string(kStateRoot) + "/" + name;
+  const std::string state = std::string(cli::kStateRoot) + "/" + name;
   if (config.socket.path != defaults().socket.path && config.socket.path != socket) {
     warnings.push_back("socket.path " + config.socket.path + " is ignored: instance " + name +
                        " listens on " + socket);

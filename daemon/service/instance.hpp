@@ -7,17 +7,12 @@
 #include <vector>
 
 #include "daemon/config/daemon_config.hpp"
+#include "daemon/programs/cli/instance_names.hpp"
 
 namespace scp::daemon {
 
-inline constexpr const char* kRunDirectory = "/run/scp-estimator";
-inline constexpr const char* kStateRoot = "/var/lib/scp-estimator";
-
-// "" when `name` may name an instance (1-64 letters, digits, '.', '_', '-'; not "." or ".."),
-// else why not.
-std::string instance_name_problem(const std::string& name);
-
-std::string instance_socket(const std::string& name);  // /run/scp-estimator/NAME.sock
+using cli::instance_name_problem;
+using cli::instance_socket;
 
 // Sets socket.path and state.directory from the instance, and actuator.name when the file left
 // it at its default. Returns a warning for each key the file set to something else (ignored).

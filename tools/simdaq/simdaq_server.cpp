@@ -151,329 +151,429 @@ int reply_chars(const std::uint8_t* q, int h) noexcept {
 
 }  // namespace
 
-int serve_modbus(const SimDaqOptions& o, std::atomic<bool>& stop) {
-  const modbus::ModbusSettings& map = o.map;
-  const bool tcp = map.transport == modbus::Transport::tcp;
-  modbus_t* ctx =
-      tcp ? modbus_new_tcp(map.host.c_str(), map.port)
-          : modbus_new_rtu(map.device.c_str(), map.baud, map.parity, map.data_bits, map.stop_bits);
-  if (ctx == nullptr) {
+namespace {
+
+// libmodbus's context and register image, freed with the server.
+struct ModbusContext {
+  ~ModbusContext() {
+    if (ctx != nullptr && rtu) modbus_close(ctx);
+    if (ctx != nullptr) modbus_free(ctx);
+    if (mapping != nullptr) modbus_mapping_free(mapping);
+  }
+  modbus_t* ctx = nullptr;
+  modbus_mapping_t* mapping = nullptr;
+  bool rtu = false;
+};
+
+struct Counters {
+  std::uint64_t requests = 0, dropped = 0, exceptions = 0, unencodable = 0, late = 0,
+                watchdog_trips = 0, late_replies = 0;
+};
+
+// The simulated DAQ behind a Modbus TCP server or RTU slave: the plant advances by periods of
+// wall-clock time (or one period per command in lock-step, or continuously in wall-clock mode),
+// its sample sits in the register image, and requests are answered from it, with the faults the
+// options ask for.
+class ModbusSimDaq {
+ public:
+  explicit ModbusSimDaq(const SimDaqOptions& o);
+  ~ModbusSimDaq();
+  // Creates the context and the register image, listens (TCP) or opens the line (RTU), prints
+  // the ready line. False (the reason on stderr) when any of it fails.
+  bool open();
+  void serve(std::atomic<bool>& stop);
+  void print_summary() const;
+
+ private:
+  bool listen_or_connect();
+  bool open_command_log();
+  void announce_wallclock() const;
+  void step();
+  void encode(const Sample& sample);
+  // Waits for a request until the next deadline; false on a timeout or a signal.
+  bool wait_for_requests(fd_set& fds);
+  void check_watchdog();
+  void accept_client();
+  void handle_request(int fd);
+  // False when a fault window swallowed the request or answered it with an exception.
+  bool faulted(double t, int header);
+  void wallclock_timing(std::int64_t received, int request_bytes);
+  bool writes_command() const;
+  double commanded() const;
+  void log_command(double t, double volts, const char* note);
+  double elapsed_s() const { return std::chrono::duration<double>(Clock::now() - start_).count(); }
+
+  const SimDaqOptions& o_;
+  const modbus::ModbusSettings& map_;
+  const bool tcp_;
+  ModbusContext modbus_;
+  int n_input_ = 0;
+  int n_holding_ = 0;
+  int command_count_ = 0;
+  int listen_fd_ = -1;
+  int rtu_fd_ = -1;
+  std::set<int> clients_;
+  std::vector<std::uint8_t> query_ = std::vector<std::uint8_t>(MODBUS_MAX_ADU_LENGTH);
+  sim::SimDriver plant_;
+  Sample sample_;
+  std::FILE* log_ = nullptr;
+  EmulatedWire wire_;
+  WireSettings wire_settings_;
+  std::int64_t start_ns_ = 0;  // --wallclock: the plant's time is CLOCK_MONOTONIC since then
+  Clock::time_point start_;
+  Clock::duration period_{};
+  Clock::time_point next_;
+  std::int64_t k_ = 0;
+  Clock::time_point watchdog_fed_;
+  bool watchdog_tripped_ = false;
+  Counters n_;
+};
+
+WireSettings wire_settings(const SimDaqOptions& o) {
+  WireSettings w;
+  modbus::ModbusSettings rtu = o.map;
+  rtu.transport = modbus::Transport::rtu;  // an RTU line's timing, whatever carries the bytes
+  w.char_s = modbus::char_time_s(rtu);
+  w.gap_s = o.wire_gap_s >= 0 ? o.wire_gap_s : modbus::kRtuFrameGapChars * w.char_s;
+  w.jitter_s = o.wire_jitter_s;
+  w.seed = o.wire_seed;
+  return w;
+}
+
+ModbusSimDaq::ModbusSimDaq(const SimDaqOptions& o)
+    : o_(o),
+      map_(o.map),
+      tcp_(o.map.transport == modbus::Transport::tcp),
+      plant_(o.sim),
+      wire_(wire_settings(o)),
+      wire_settings_(wire_settings(o)) {
+  command_count_ = modbus::register_count(map_.command.type);
+}
+
+ModbusSimDaq::~ModbusSimDaq() {
+  if (log_ != nullptr) std::fclose(log_);
+  plant_.close();
+  for (const int c : clients_) ::close(c);
+  if (listen_fd_ >= 0) ::close(listen_fd_);
+}
+
+bool ModbusSimDaq::open() {
+  modbus_.rtu = !tcp_;
+  modbus_.ctx = tcp_ ? modbus_new_tcp(map_.host.c_str(), map_.port)
+                     : modbus_new_rtu(map_.device.c_str(), map_.baud, map_.parity, map_.data_bits,
+                                      map_.stop_bits);
+  if (modbus_.ctx == nullptr) {
     std::fprintf(stderr, "scp-simdaq: cannot create the Modbus context: %s\n",
                  modbus_strerror(errno));
-    return 1;
+    return false;
   }
-  modbus_set_slave(ctx, map.unit_id);
+  modbus_set_slave(modbus_.ctx, map_.unit_id);
   // A client that sends half a request must not freeze the plant.
-  modbus_set_indication_timeout(ctx, 0, 200000);
-  const int n_input = table_size(map, Table::input);
-  const int n_holding = std::max(table_size(map, Table::holding), o.watchdog_register + 1);
-  modbus_mapping_t* mb = modbus_mapping_new(0, 0, n_holding, n_input);
-  if (mb == nullptr) {
+  modbus_set_indication_timeout(modbus_.ctx, 0, 200000);
+  n_input_ = table_size(map_, Table::input);
+  n_holding_ = std::max(table_size(map_, Table::holding), o_.watchdog_register + 1);
+  modbus_.mapping = modbus_mapping_new(0, 0, n_holding_, n_input_);
+  if (modbus_.mapping == nullptr) {
     std::fprintf(stderr, "scp-simdaq: cannot allocate the register map: %s\n",
                  modbus_strerror(errno));
-    modbus_free(ctx);
-    return 1;
+    return false;
   }
+  if (!listen_or_connect()) return false;
+  plant_.open();
+  plant_.read({0.0, o_.period_s}, sample_);
+  encode(sample_);
+  if (!open_command_log()) return false;
+  start_ns_ = monotonic_ns();
+  announce_wallclock();
+  start_ = Clock::now();
+  period_ = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(o_.period_s));
+  next_ = start_ + period_;
+  watchdog_fed_ = Clock::now();
+  return true;
+}
 
-  int listen_fd = -1;
-  int rtu_fd = -1;
-  if (tcp) {
-    listen_fd = modbus_tcp_listen(ctx, 4);
-    if (listen_fd == -1) {
+bool ModbusSimDaq::listen_or_connect() {
+  if (tcp_) {
+    listen_fd_ = modbus_tcp_listen(modbus_.ctx, 4);
+    if (listen_fd_ == -1) {
       std::fprintf(stderr, "scp-simdaq: cannot listen on %s:%d: %s (port in use? try --listen)\n",
-                   map.host.c_str(), map.port, modbus_strerror(errno));
-      modbus_mapping_free(mb);
-      modbus_free(ctx);
-      return 1;
+                   map_.host.c_str(), map_.port, modbus_strerror(errno));
+      return false;
     }
     sockaddr_in bound{};
     socklen_t len = sizeof bound;
-    getsockname(listen_fd, reinterpret_cast<sockaddr*>(&bound), &len);
-    std::printf("scp-simdaq: listening on %s:%d unit %d, period %g s\n", map.host.c_str(),
-                ntohs(bound.sin_port), map.unit_id, o.period_s);
+    getsockname(listen_fd_, reinterpret_cast<sockaddr*>(&bound), &len);
+    std::printf("scp-simdaq: listening on %s:%d unit %d, period %g s\n", map_.host.c_str(),
+                ntohs(bound.sin_port), map_.unit_id, o_.period_s);
   } else {
-    if (modbus_connect(ctx) == -1) {
-      std::fprintf(stderr, "scp-simdaq: cannot open %s: %s\n", map.device.c_str(),
+    if (modbus_connect(modbus_.ctx) == -1) {
+      std::fprintf(stderr, "scp-simdaq: cannot open %s: %s\n", map_.device.c_str(),
                    modbus_strerror(errno));
-      modbus_mapping_free(mb);
-      modbus_free(ctx);
-      return 1;
+      return false;
     }
-    rtu_fd = modbus_get_socket(ctx);
-    std::printf("scp-simdaq: serving %s %d %c%d%d unit %d, period %g s\n", map.device.c_str(),
-                map.baud, map.parity, map.data_bits, map.stop_bits, map.unit_id, o.period_s);
+    rtu_fd_ = modbus_get_socket(modbus_.ctx);
+    std::printf("scp-simdaq: serving %s %d %c%d%d unit %d, period %g s\n", map_.device.c_str(),
+                map_.baud, map_.parity, map_.data_bits, map_.stop_bits, map_.unit_id, o_.period_s);
   }
   std::fflush(stdout);
+  return true;
+}
 
-  sim::SimDriver plant(o.sim);
-  plant.open();
-  Sample sample;
-  plant.read({0.0, o.period_s}, sample);
-  encode_sample(map, sample, mb->tab_input_registers, n_input, mb->tab_registers, n_holding);
-
-  std::FILE* log = nullptr;
-  if (!o.command_log.empty()) {
-    log = std::fopen(o.command_log.c_str(), "w");
-    if (log == nullptr) {
-      std::fprintf(stderr, "scp-simdaq: cannot write the command log %s: %s\n",
-                   o.command_log.c_str(), std::strerror(errno));
-      plant.close();
-      if (listen_fd >= 0) ::close(listen_fd);
-      modbus_free(ctx);
-      modbus_mapping_free(mb);
-      return 1;
-    }
-    setvbuf(log, nullptr, _IOLBF, 0);  // a test may SIGKILL us: every line must be on disk
+bool ModbusSimDaq::open_command_log() {
+  if (o_.command_log.empty()) return true;
+  log_ = std::fopen(o_.command_log.c_str(), "w");
+  if (log_ == nullptr) {
+    std::fprintf(stderr, "scp-simdaq: cannot write the command log %s: %s\n",
+                 o_.command_log.c_str(), std::strerror(errno));
+    return false;
   }
+  setvbuf(log_, nullptr, _IOLBF, 0);  // a test may SIGKILL us: every line must be on disk
+  return true;
+}
 
-  // --wallclock: the plant's time is CLOCK_MONOTONIC since here, advanced to each request's
-  // instant.
-  const std::int64_t start_ns = monotonic_ns();
-  WireSettings wire_settings;
-  wire_settings.char_s = modbus::char_time_s([&] {
-    modbus::ModbusSettings rtu = map;
-    rtu.transport = modbus::Transport::rtu;  // an RTU line's timing, whatever carries the bytes
-    return rtu;
-  }());
-  wire_settings.gap_s =
-      o.wire_gap_s >= 0 ? o.wire_gap_s : modbus::kRtuFrameGapChars * wire_settings.char_s;
-  wire_settings.jitter_s = o.wire_jitter_s;
-  wire_settings.seed = o.wire_seed;
-  EmulatedWire wire(wire_settings);
-  if (o.wallclock) {
-    std::printf("scp-simdaq: wall-clock plant%s", o.wire ? "" : "\n");
-    if (o.wire) {
-      std::printf(
-          " behind an emulated RTU line: %.1f us per character, gap %.1f us, jitter %.1f us\n",
-          wire_settings.char_s * 1e6, wire_settings.gap_s * 1e6, o.wire_jitter_s * 1e6);
-    }
-    std::fflush(stdout);
+void ModbusSimDaq::announce_wallclock() const {
+  if (!o_.wallclock) return;
+  std::printf("scp-simdaq: wall-clock plant%s", o_.wire ? "" : "\n");
+  if (o_.wire) {
+    std::printf(
+        " behind an emulated RTU line: %.1f us per character, gap %.1f us, jitter %.1f us\n",
+        wire_settings_.char_s * 1e6, wire_settings_.gap_s * 1e6, o_.wire_jitter_s * 1e6);
   }
+  std::fflush(stdout);
+}
 
-  std::set<int> clients;
-  std::vector<std::uint8_t> query(MODBUS_MAX_ADU_LENGTH);
-  const auto start = Clock::now();
-  const auto period =
-      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(o.period_s));
-  auto next = start + period;
-  std::int64_t k = 0;
-  std::uint64_t requests = 0, dropped = 0, exceptions = 0, unencodable = 0, late_replies = 0;
-  // One period of the plant under the voltage the command register holds now.
-  const auto step = [&] {
-    ++k;
-    plant.write_voltage(decode_command(map.command, mb->tab_registers));
-    plant.read({static_cast<double>(k) * o.period_s, o.period_s}, sample);
-    if (!encode_sample(map, sample, mb->tab_input_registers, n_input, mb->tab_registers,
-                       n_holding)) {
-      ++unencodable;
-    }
-  };
-  const int command_count = modbus::register_count(map.command.type);
-  // Whether a request (function 6 or 16) wrote into the command register.
-  const auto writes_command = [&](const std::uint8_t* q) {
-    return writes_registers(q, modbus_get_header_length(ctx), map.command.address, command_count);
-  };
-  // The voltage a write request (function 6 or 16) carries for the command register.
-  const auto commanded_in = [&](const std::uint8_t* q, int header) {
-    std::array<std::uint16_t, 2> regs{};
-    const int f = q[static_cast<std::size_t>(header)];
-    const int at = header + (f == 0x06 ? 3 : 6);
-    for (int i = 0; i < command_count && i < 2; ++i) {
-      regs[static_cast<std::size_t>(i)] =
-          static_cast<std::uint16_t>((q[static_cast<std::size_t>(at + 2 * i)] << 8) |
-                                     q[static_cast<std::size_t>(at + 2 * i + 1)]);
-    }
-    modbus::CommandRegister c = map.command;
-    c.address = 0;
-    return decode_command(c, regs.data());
-  };
-  const auto log_command = [&](double t, double volts, const char* note) {
-    if (log == nullptr) return;
-    std::fprintf(log, "%lld,%.6f,%.9g%s%s\n", static_cast<long long>(k), t, volts,
-                 note[0] ? "," : "", note);
-  };
-  std::uint64_t late = 0, watchdog_trips = 0;
-  auto watchdog_fed = Clock::now();
-  bool watchdog_tripped = false;
-  const auto late_delay = std::chrono::duration_cast<Clock::duration>(
-      std::chrono::duration<double>(o.late_factor * map.response_timeout_s));
+void ModbusSimDaq::encode(const Sample& sample) {
+  if (!encode_sample(map_, sample, modbus_.mapping->tab_input_registers, n_input_,
+                     modbus_.mapping->tab_registers, n_holding_)) {
+    ++n_.unencodable;
+  }
+}
 
+// One period of the plant under the voltage the command register holds now.
+void ModbusSimDaq::step() {
+  ++k_;
+  plant_.write_voltage(decode_command(map_.command, modbus_.mapping->tab_registers));
+  plant_.read({static_cast<double>(k_) * o_.period_s, o_.period_s}, sample_);
+  encode(sample_);
+}
+
+// Whether the request in query_ (function 6 or 16) wrote into the command register.
+bool ModbusSimDaq::writes_command() const {
+  return writes_registers(query_.data(), modbus_get_header_length(modbus_.ctx),
+                          map_.command.address, command_count_);
+}
+
+// The voltage the write request in query_ carries for the command register.
+double ModbusSimDaq::commanded() const {
+  const int header = modbus_get_header_length(modbus_.ctx);
+  std::array<std::uint16_t, 2> regs{};
+  const int f = query_[static_cast<std::size_t>(header)];
+  const int at = header + (f == 0x06 ? 3 : 6);
+  for (int i = 0; i < command_count_ && i < 2; ++i) {
+    regs[static_cast<std::size_t>(i)] =
+        static_cast<std::uint16_t>((query_[static_cast<std::size_t>(at + 2 * i)] << 8) |
+                                   query_[static_cast<std::size_t>(at + 2 * i + 1)]);
+  }
+  modbus::CommandRegister c = map_.command;
+  c.address = 0;
+  return decode_command(c, regs.data());
+}
+
+void ModbusSimDaq::log_command(double t, double volts, const char* note) {
+  if (log_ == nullptr) return;
+  std::fprintf(log_, "%lld,%.6f,%.9g%s%s\n", static_cast<long long>(k_), t, volts,
+               note[0] ? "," : "", note);
+}
+
+void ModbusSimDaq::serve(std::atomic<bool>& stop) {
   while (!stop.load()) {
-    auto now = Clock::now();
-    const double elapsed = std::chrono::duration<double>(now - start).count();
-    if (o.duration_s > 0 && elapsed >= o.duration_s) break;
-    // The plant advances by whole periods of wall-clock time; far behind (a suspended process)
-    // it catches up at most one second and then resynchronizes instead of spinning.
-    int steps = 0;
-    while (!o.lockstep && !o.wallclock && now >= next &&
-           steps < static_cast<int>(1.0 / o.period_s) + 1) {
-      step();
-      next += period;
-      ++steps;
-    }
-    if (now >= next) next = now + period;
-    // Lock-step: no deadline, only a bound so that Ctrl-C and --duration are seen.
-    if (o.lockstep || o.wallclock) next = now + std::chrono::milliseconds(100);
-
+    if (o_.duration_s > 0 && elapsed_s() >= o_.duration_s) break;
     fd_set fds;
-    FD_ZERO(&fds);
-    int max_fd = -1;
-    const auto watch = [&](int fd) {
-      FD_SET(fd, &fds);
-      max_fd = std::max(max_fd, fd);
-    };
-    if (tcp) {
-      watch(listen_fd);
-      for (const int c : clients) watch(c);
-    } else {
-      watch(rtu_fd);
-    }
-    const auto wait = std::chrono::duration_cast<std::chrono::microseconds>(next - Clock::now());
-    timeval tv{0, static_cast<suseconds_t>(std::max<std::int64_t>(0, wait.count()))};
-    tv.tv_sec = tv.tv_usec / 1000000;
-    tv.tv_usec %= 1000000;
-    const int ready = select(max_fd + 1, &fds, nullptr, nullptr, &tv);
-
-    // The DAQ's own communication watchdog: unfed for watchdog_timeout_s, the output goes to
-    // 0 V whatever the command register held: the only protection when the link is dead.
-    if (o.watchdog_timeout_s > 0 && !watchdog_tripped &&
-        Clock::now() - watchdog_fed > std::chrono::duration<double>(o.watchdog_timeout_s)) {
-      watchdog_tripped = true;
-      ++watchdog_trips;
-      std::fill_n(mb->tab_registers + map.command.address, command_count, std::uint16_t{0});
-      log_command(std::chrono::duration<double>(Clock::now() - start).count(),
-                  decode_command(map.command, mb->tab_registers), "watchdog");
-    }
-    if (ready <= 0) continue;  // timeout or EINTR (Ctrl-C)
-
-    if (tcp && FD_ISSET(listen_fd, &fds)) {
-      const int c = accept(listen_fd, nullptr, nullptr);
-      if (c >= 0) {
-        // Without it Nagle holds a reply sent right after another (a late one) until the
-        // client's delayed ACK: one late reply would make the next ones late too.
-        const int one = 1;
-        setsockopt(c, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-        // The plant's instants are those of the request's arrival on this host, not of our
-        // wake-up after it (see received_ns).
-        setsockopt(c, SOL_SOCKET, SO_TIMESTAMPNS, &one, sizeof one);
-        clients.insert(c);
-      }
-    }
+    const bool ready = wait_for_requests(fds);
+    check_watchdog();
+    if (!ready) continue;  // timeout or EINTR (Ctrl-C)
+    if (tcp_ && FD_ISSET(listen_fd_, &fds)) accept_client();
     std::vector<int> serve;
-    if (tcp) {
-      for (const int c : clients) {
+    if (tcp_) {
+      for (const int c : clients_) {
         if (FD_ISSET(c, &fds)) serve.push_back(c);
       }
-    } else if (FD_ISSET(rtu_fd, &fds)) {
-      serve.push_back(rtu_fd);
+    } else if (FD_ISSET(rtu_fd_, &fds)) {
+      serve.push_back(rtu_fd_);
     }
-    for (const int fd : serve) {
-      modbus_set_socket(ctx, fd);
-      const std::int64_t received = tcp ? received_ns(fd) : 0;
-      const int rc = modbus_receive(ctx, query.data());
-      if (rc == 0) continue;  // RTU: addressed to another unit
-      if (rc == -1) {
-        if (tcp) {  // the client went away
-          ::close(fd);
-          clients.erase(fd);
-        } else {
-          modbus_flush(ctx);  // a garbled frame: resynchronize on the next one
-        }
-        continue;
-      }
-      ++requests;
-      const double t = std::chrono::duration<double>(Clock::now() - start).count();
-      const int header = modbus_get_header_length(ctx);
-      if (in_window(t, o.fault_after_s, o.fault_duration_s)) {
-        ++dropped;  // a dead slave: the request is read and never answered
-        if (writes_command(query.data())) {
-          // What the client tried to command, as a DAQ would see it on the wire, not applied.
-          log_command(t, commanded_in(query.data(), header), "unanswered");
-        }
-        continue;
-      }
-      const bool is_write = query[static_cast<std::size_t>(header)] == 0x06 ||
-                            query[static_cast<std::size_t>(header)] == 0x10;
-      if (in_window(t, o.exception_after_s, o.fault_duration_s) &&
-          !(o.exception_reads_only && is_write)) {
-        ++exceptions;
-        modbus_reply_exception(ctx, query.data(), static_cast<unsigned>(o.exception_code));
-        continue;
-      }
-      if (o.late_every > 0 && requests % static_cast<std::uint64_t>(o.late_every) == 0) {
-        // A late reply: the client has timed out on it and moved on; it must recognise and
-        // discard this one when it comes.
-        ++late;
-        std::this_thread::sleep_for(late_delay);
-      }
-      if (o.watchdog_timeout_s > 0 &&
-          (o.watchdog_register < 0 ||
-           writes_registers(query.data(), header, o.watchdog_register, 1))) {
-        watchdog_fed = Clock::now();
-        watchdog_tripped = false;  // fed again: armed again
-      }
-      if (o.wallclock) {
-        // The request's instant on the (emulated) line: sample the plant then, or bring it there
-        // under the old command before the new one applies; reply when the line would deliver.
-        const int h = modbus_get_header_length(ctx);
-        const int request_chars = tcp ? rc - h + 3 : rc;  // RTU: address + PDU + CRC
-        const std::int64_t now_ns = monotonic_ns();
-        const std::int64_t arrived = received > 0 && received <= now_ns ? received : now_ns;
-        const WireTransaction w =
-            o.wire ? wire.schedule(arrived, request_chars, reply_chars(query.data(), h))
-                   : WireTransaction{arrived, arrived};
-        const double t_event = static_cast<double>(w.event_ns - start_ns) * 1e-9;
-        if (writes_command(query.data())) {
-          plant.advance_to(t_event);
-        } else {
-          plant.read({t_event, o.period_s}, sample);
-          if (!encode_sample(map, sample, mb->tab_input_registers, n_input, mb->tab_registers,
-                             n_holding)) {
-            ++unencodable;
-          }
-        }
-        sleep_until_ns(w.reply_ns);
-        // A loaded machine wakes us late: the reply (not the sample) is late, which moves the
-        // daemon's transaction midpoint by half of it. Counted for the summary.
-        if (monotonic_ns() - w.reply_ns > 500'000) ++late_replies;
-      }
-      // Logged before the reply: a test that SIGKILLs us right after the client saw the
-      // acknowledgement must find that write in the log.
-      if (writes_command(query.data())) log_command(t, commanded_in(query.data(), header), "");
-      modbus_reply(ctx, query.data(), rc, mb);
-      if (o.wallclock && writes_command(query.data())) {
-        plant.write_voltage(decode_command(map.command, mb->tab_registers));  // from t_event on
-        ++k;
-      }
-      if (writes_command(query.data()) && o.lockstep) {
-        step();  // the reply went out first: the client is not kept waiting
-      }
-    }
-    if (!tcp) modbus_set_socket(ctx, rtu_fd);
+    for (const int fd : serve) handle_request(fd);
+    if (!tcp_) modbus_set_socket(modbus_.ctx, rtu_fd_);
   }
+}
 
+bool ModbusSimDaq::wait_for_requests(fd_set& fds) {
+  const auto now = Clock::now();
+  // The plant advances by whole periods of wall-clock time; far behind (a suspended process)
+  // it catches up at most one second and then resynchronizes instead of spinning.
+  int steps = 0;
+  while (!o_.lockstep && !o_.wallclock && now >= next_ &&
+         steps < static_cast<int>(1.0 / o_.period_s) + 1) {
+    step();
+    next_ += period_;
+    ++steps;
+  }
+  if (now >= next_) next_ = now + period_;
+  // Lock-step: no deadline, only a bound so that Ctrl-C and --duration are seen.
+  if (o_.lockstep || o_.wallclock) next_ = now + std::chrono::milliseconds(100);
+
+  FD_ZERO(&fds);
+  int max_fd = -1;
+  const auto watch = [&](int fd) {
+    FD_SET(fd, &fds);
+    max_fd = std::max(max_fd, fd);
+  };
+  if (tcp_) {
+    watch(listen_fd_);
+    for (const int c : clients_) watch(c);
+  } else {
+    watch(rtu_fd_);
+  }
+  const auto wait = std::chrono::duration_cast<std::chrono::microseconds>(next_ - Clock::now());
+  timeval tv{0, static_cast<suseconds_t>(std::max<std::int64_t>(0, wait.count()))};
+  tv.tv_sec = tv.tv_usec / 1000000;
+  tv.tv_usec %= 1000000;
+  return select(max_fd + 1, &fds, nullptr, nullptr, &tv) > 0;
+}
+
+// The DAQ's own communication watchdog: unfed for watchdog_timeout_s, the output goes to 0 V
+// whatever the command register held: the only protection when the link is dead.
+void ModbusSimDaq::check_watchdog() {
+  if (o_.watchdog_timeout_s <= 0 || watchdog_tripped_ ||
+      Clock::now() - watchdog_fed_ <= std::chrono::duration<double>(o_.watchdog_timeout_s)) {
+    return;
+  }
+  watchdog_tripped_ = true;
+  ++n_.watchdog_trips;
+  std::fill_n(modbus_.mapping->tab_registers + map_.command.address, command_count_,
+              std::uint16_t{0});
+  log_command(elapsed_s(), decode_command(map_.command, modbus_.mapping->tab_registers),
+              "watchdog");
+}
+
+void ModbusSimDaq::accept_client() {
+  const int c = accept(listen_fd_, nullptr, nullptr);
+  if (c < 0) return;
+  // Without it Nagle holds a reply sent right after another (a late one) until the client's
+  // delayed ACK: one late reply would make the next ones late too.
+  const int one = 1;
+  setsockopt(c, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+  // The plant's instants are those of the request's arrival on this host, not of our wake-up
+  // after it (see received_ns).
+  setsockopt(c, SOL_SOCKET, SO_TIMESTAMPNS, &one, sizeof one);
+  clients_.insert(c);
+}
+
+void ModbusSimDaq::handle_request(int fd) {
+  modbus_set_socket(modbus_.ctx, fd);
+  const std::int64_t received = tcp_ ? received_ns(fd) : 0;
+  const int rc = modbus_receive(modbus_.ctx, query_.data());
+  if (rc == 0) return;  // RTU: addressed to another unit
+  if (rc == -1) {
+    if (tcp_) {  // the client went away
+      ::close(fd);
+      clients_.erase(fd);
+    } else {
+      modbus_flush(modbus_.ctx);  // a garbled frame: resynchronize on the next one
+    }
+    return;
+  }
+  ++n_.requests;
+  const double t = elapsed_s();
+  const int header = modbus_get_header_length(modbus_.ctx);
+  if (faulted(t, header)) return;
+  if (o_.watchdog_timeout_s > 0 &&
+      (o_.watchdog_register < 0 ||
+       writes_registers(query_.data(), header, o_.watchdog_register, 1))) {
+    watchdog_fed_ = Clock::now();
+    watchdog_tripped_ = false;  // fed again: armed again
+  }
+  if (o_.wallclock) wallclock_timing(received, rc);
+  // Logged before the reply: a test that SIGKILLs us right after the client saw the
+  // acknowledgement must find that write in the log.
+  const bool command = writes_command();
+  if (command) log_command(t, commanded(), "");
+  modbus_reply(modbus_.ctx, query_.data(), rc, modbus_.mapping);
+  if (o_.wallclock && command) {
+    plant_.write_voltage(decode_command(map_.command, modbus_.mapping->tab_registers));
+    ++k_;  // from the request's event instant on
+  }
+  if (command && o_.lockstep) step();  // the reply went out first: the client is not kept waiting
+}
+
+bool ModbusSimDaq::faulted(double t, int header) {
+  if (in_window(t, o_.fault_after_s, o_.fault_duration_s)) {
+    ++n_.dropped;  // a dead slave: the request is read and never answered
+    // What the client tried to command, as a DAQ would see it on the wire, not applied.
+    if (writes_command()) log_command(t, commanded(), "unanswered");
+    return true;
+  }
+  const std::uint8_t function = query_[static_cast<std::size_t>(header)];
+  const bool is_write = function == 0x06 || function == 0x10;
+  if (in_window(t, o_.exception_after_s, o_.fault_duration_s) &&
+      !(o_.exception_reads_only && is_write)) {
+    ++n_.exceptions;
+    modbus_reply_exception(modbus_.ctx, query_.data(), static_cast<unsigned>(o_.exception_code));
+    return true;
+  }
+  if (o_.late_every > 0 && n_.requests % static_cast<std::uint64_t>(o_.late_every) == 0) {
+    // A late reply: the client has timed out on it and moved on; it must recognise and discard
+    // this one when it comes.
+    ++n_.late;
+    std::this_thread::sleep_for(
+        std::chrono::duration<double>(o_.late_factor * map_.response_timeout_s));
+  }
+  return false;
+}
+
+// The request's instant on the (emulated) line: sample the plant then, or bring it there under
+// the old command before the new one applies; reply when the line would deliver.
+void ModbusSimDaq::wallclock_timing(std::int64_t received, int request_bytes) {
+  const int h = modbus_get_header_length(modbus_.ctx);
+  const int request_chars = tcp_ ? request_bytes - h + 3 : request_bytes;  // RTU: address+PDU+CRC
+  const std::int64_t now_ns = monotonic_ns();
+  const std::int64_t arrived = received > 0 && received <= now_ns ? received : now_ns;
+  const WireTransaction w =
+      o_.wire ? wire_.schedule(arrived, request_chars, reply_chars(query_.data(), h))
+              : WireTransaction{arrived, arrived};
+  const double t_event = static_cast<double>(w.event_ns - start_ns_) * 1e-9;
+  if (writes_command()) {
+    plant_.advance_to(t_event);
+  } else {
+    plant_.read({t_event, o_.period_s}, sample_);
+    encode(sample_);
+  }
+  sleep_until_ns(w.reply_ns);
+  // A loaded machine wakes us late: the reply (not the sample) is late, which moves the
+  // daemon's transaction midpoint by half of it. Counted for the summary.
+  if (monotonic_ns() - w.reply_ns > 500'000) ++n_.late_replies;
+}
+
+void ModbusSimDaq::print_summary() const {
   std::printf(
       "scp-simdaq: stopped after %.3f s: %llu requests, %llu unanswered, %llu exception replies, "
       "%llu samples that did not fit their register type, %llu replies sent late, %llu "
       "watchdog trips, %llu replies sent > 0.5 ms after the emulated line would have delivered "
       "them\n",
-      std::chrono::duration<double>(Clock::now() - start).count(),
-      static_cast<unsigned long long>(requests), static_cast<unsigned long long>(dropped),
-      static_cast<unsigned long long>(exceptions), static_cast<unsigned long long>(unencodable),
-      static_cast<unsigned long long>(late), static_cast<unsigned long long>(watchdog_trips),
-      static_cast<unsigned long long>(late_replies));
+      elapsed_s(), static_cast<unsigned long long>(n_.requests),
+      static_cast<unsigned long long>(n_.dropped), static_cast<unsigned long long>(n_.exceptions),
+      static_cast<unsigned long long>(n_.unencodable), static_cast<unsigned long long>(n_.late),
+      static_cast<unsigned long long>(n_.watchdog_trips),
+      static_cast<unsigned long long>(n_.late_replies));
   std::fflush(stdout);
-  if (log != nullptr) std::fclose(log);
-  plant.close();
-  for (const int c : clients) ::close(c);
-  if (listen_fd >= 0) ::close(listen_fd);
-  if (tcp) {
-    modbus_free(ctx);
-  } else {
-    modbus_close(ctx);
-    modbus_free(ctx);
-  }
-  modbus_mapping_free(mb);
+}
+
+}  // namespace
+
+int serve_modbus(const SimDaqOptions& o, std::atomic<bool>& stop) {
+  ModbusSimDaq daq(o);
+  if (!daq.open()) return 1;
+  daq.serve(stop);
+  daq.print_summary();
   return 0;
 }
 

@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <string_view>
 
+#include "daemon/core/published_state.hpp"
+
 namespace scp::daemon::metrics {
 namespace {
 
@@ -13,7 +15,6 @@ using nlohmann::json;
 // θ's components (docs/numerics.md), as label values.
 constexpr std::array<const char*, 6> kParameters{"b_over_m",      "alpha1_over_m",   "k_over_m",
                                                  "alpha2_over_m", "lambda_over_cth", "inv_r_cth"};
-constexpr std::array<const char*, 4> kStates{"starting", "running", "fault", "stopping"};
 
 std::string number(double value) {
   if (std::isinf(value)) return value > 0 ? "+Inf" : "-Inf";
@@ -72,20 +73,25 @@ double get(const json& object, const char* key, double otherwise = NAN) {
   return it != object.end() && it->is_number() ? it->get<double>() : otherwise;
 }
 
-void status_metrics(Writer& w, const json& status) {
+void identity_metrics(Writer& w, const json& status) {
   w.family("scp_estimator_info", "gauge", "the daemon's release and driver (value 1)");
   w.sample("scp_estimator_info", 1.0,
            "release=\"" + label_value(status.value("release", "")) + "\",driver=\"" +
                label_value(status.value("driver", "")) + "\"");
   w.family("scp_estimator_state", "gauge", "1 for the loop's current state, 0 for the others");
   const std::string state = status.value("state", "");
-  for (const char* s : kStates)
-    w.sample("scp_estimator_state", state == s ? 1.0 : 0.0, std::string("state=\"") + s + "\"");
+  for (const auto& [value, name] : kRunStateNames) {
+    w.sample("scp_estimator_state", state == name ? 1.0 : 0.0,
+             std::string("state=\"") + name + "\"");
+  }
   w.single("scp_estimator_uptime_seconds", "gauge", "loop time since the loop started", status,
            "uptime_s");
   w.single("scp_estimator_snapshot_timestamp_seconds", "gauge",
            "wall-clock time (Unix epoch) of the snapshot these values come from", status, "unix_ns",
            1e-9);
+}
+
+void output_metrics(Writer& w, const json& status) {
   w.single("scp_estimator_excitation_enabled", "gauge", "1 when the excitation signal is on",
            status, "excitation");
   w.single("scp_estimator_output_volts", "gauge", "voltage the device last acknowledged", status,
@@ -106,7 +112,31 @@ void status_metrics(Writer& w, const json& status) {
     w.single("scp_estimator_last_fault_timestamp_seconds", "gauge",
              "wall-clock time (Unix epoch) of the latest fault", status["last_fault"], "unix_ns",
              1e-9);
+}
 
+// The loop's lateness histogram as a Prometheus histogram: bucket le = the upper edge of each
+// bin, cumulative. The sum is mean × count (the loop keeps no exact sum).
+void lateness_histogram(Writer& w, const json& histogram, const json& lateness) {
+  const json edges = histogram.value("edges_us", json::array());
+  const json counts = histogram.value("counts", json::array());
+  if (!edges.is_array() || !counts.is_array() || edges.size() != counts.size() || edges.empty()) {
+    return;
+  }
+  const std::string name = "scp_estimator_loop_lateness_seconds";
+  w.family(name, "histogram", "wake-up lateness of the loop after its deadline");
+  double cumulative = 0.0;
+  for (std::size_t i = 0; i + 1 < edges.size(); ++i) {
+    cumulative += counts[i].get<double>();
+    w.sample(name + "_bucket", cumulative,
+             "le=\"" + number(edges[i + 1].get<double>() * 1e-6) + "\"");
+  }
+  cumulative += counts.back().get<double>();
+  w.sample(name + "_bucket", cumulative, "le=\"+Inf\"");
+  w.sample(name + "_sum", get(lateness, "mean", 0.0) * 1e-6 * cumulative);
+  w.sample(name + "_count", cumulative);
+}
+
+void loop_metrics(Writer& w, const json& status) {
   const json loop = status.value("loop", json::object());
   w.single("scp_estimator_loop_cycles_total", "counter", "loop cycles run", loop, "cycles");
   w.single("scp_estimator_loop_overruns_total", "counter",
@@ -124,26 +154,10 @@ void status_metrics(Writer& w, const json& status) {
            "max", 1e-6);
   w.single("scp_estimator_loop_exec_mean_seconds", "gauge", "mean cycle execution time", exec,
            "mean", 1e-6);
-  // The loop's lateness histogram as a Prometheus histogram: bucket le = the upper edge of each
-  // bin, cumulative. The sum is mean × count (the loop keeps no exact sum).
-  const json histogram = loop.value("histogram", json::object());
-  const json edges = histogram.value("edges_us", json::array());
-  const json counts = histogram.value("counts", json::array());
-  if (edges.is_array() && counts.is_array() && edges.size() == counts.size() && !edges.empty()) {
-    const char* name = "scp_estimator_loop_lateness_seconds";
-    w.family(name, "histogram", "wake-up lateness of the loop after its deadline");
-    double cumulative = 0.0;
-    for (std::size_t i = 0; i + 1 < edges.size(); ++i) {
-      cumulative += counts[i].get<double>();
-      w.sample(std::string(name) + "_bucket", cumulative,
-               "le=\"" + number(edges[i + 1].get<double>() * 1e-6) + "\"");
-    }
-    cumulative += counts.back().get<double>();
-    w.sample(std::string(name) + "_bucket", cumulative, "le=\"+Inf\"");
-    w.sample(std::string(name) + "_sum", get(lateness, "mean", 0.0) * 1e-6 * cumulative);
-    w.sample(std::string(name) + "_count", cumulative);
-  }
+  lateness_histogram(w, loop.value("histogram", json::object()), lateness);
+}
 
+void driver_metrics(Writer& w, const json& status) {
   const json driver = status.value("driver_stats", json::object());
   static constexpr std::array<std::array<const char*, 3>, 8> kDriverCounters{{
       {"reads", "scp_estimator_driver_reads_total", "driver read transactions"},
@@ -162,6 +176,9 @@ void status_metrics(Writer& w, const json& status) {
     w.single(name, "counter", help, driver, key);
   w.single("scp_estimator_driver_link_up", "gauge", "1 while the device answers", driver,
            "link_up");
+}
+
+void service_metrics(Writer& w, const json& status) {
   if (status.contains("recording") && status["recording"].is_object())
     w.single("scp_estimator_recording_dropped_rows_total", "counter",
              "recording rows the loop dropped because the recorder's ring was full",
@@ -241,7 +258,11 @@ std::string label_value(const std::string& text) {
 
 std::string exposition(const json& status, const json& estimate, const std::string& actuator) {
   Writer w(actuator);
-  status_metrics(w, status);
+  identity_metrics(w, status);
+  output_metrics(w, status);
+  loop_metrics(w, status);
+  driver_metrics(w, status);
+  service_metrics(w, status);
   estimate_metrics(w, estimate);
   return w.take();
 }

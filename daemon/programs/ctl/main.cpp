@@ -13,6 +13,7 @@
 
 #include "daemon/outputs/metrics/exposition.hpp"
 #include "daemon/programs/cli/conventions.hpp"
+#include "daemon/programs/cli/instance_names.hpp"
 #include "daemon/programs/ctl/connection.hpp"
 #include "daemon/programs/ctl/format.hpp"
 
@@ -158,108 +159,136 @@ int wait_for(Connection& connection, const std::string& target, double limit_s, 
   }
 }
 
+// The command line, as parsed: the global options and each subcommand's.
+struct Options {
+  std::string socket_path = default_socket();
+  std::string instance;
+  bool raw = false;
+  double timeout_s = 5.0;
+  double rate_hz = 1.0;  // watch
+  long count = 0;        // watch
+  std::string target;    // wait
+  double wait_limit_s = 0.0;
+  std::string on_off;  // excitation
+};
+
+struct Subcommands {
+  CLI::App* status;
+  CLI::App* get;
+  CLI::App* watch;
+  CLI::App* wait;
+  CLI::App* metrics;
+  CLI::App* reset;
+  CLI::App* excitation;
+  CLI::App* clear_fault;
+};
+
+void declare_options(CLI::App& app, Options& o) {
+  app.add_option(
+         "--socket", o.socket_path,
+         "daemon socket (default: $SCP_ESTIMATOR_SOCKET or " + std::string(kDefaultSocket) + ")")
+      ->type_name("PATH");
+  app.add_option("--instance", o.instance,
+                 "talk to instance NAME of scp-estimatord@.service (socket "
+                 "/run/scp-estimator/NAME.sock)")
+      ->type_name("NAME")
+      ->excludes("--socket");
+  app.add_flag("--json", o.raw, "print the daemon's JSON objects unchanged, one per line");
+  app.add_option("--timeout", o.timeout_s,
+                 "seconds to wait for each answer of the daemon (default 5)")
+      ->type_name("S")
+      ->check(CLI::Range(0.1, 3600.0));
+}
+
+Subcommands declare_subcommands(CLI::App& app, Options& o) {
+  Subcommands c{};
+  c.status = app.add_subcommand("status", "daemon state, fault reason, loop statistics");
+  c.get = app.add_subcommand("get", "current parameter estimate with its uncertainty");
+  c.watch = app.add_subcommand("watch", "stream estimates");
+  c.watch->add_option("--rate", o.rate_hz, "estimates per second (default 1)")
+      ->type_name("HZ")
+      ->check(CLI::Range(0.1, 1000.0));
+  c.watch->add_option("--count", o.count, "stop after N estimates (default 0: until interrupted)")
+      ->type_name("N")
+      ->check(CLI::NonNegativeNumber);
+  c.wait = app.add_subcommand(
+      "wait", "wait until the daemon is running, or running with every block converged");
+  c.wait->add_option("--state", o.target, "running or converged")
+      ->type_name("STATE")
+      ->required()
+      ->check(CLI::IsMember({"running", "converged"}));
+  c.wait
+      ->add_option("--timeout", o.wait_limit_s,
+                   "give up after S seconds with exit status 3 (default 0: wait for ever)")
+      ->type_name("S")
+      ->check(CLI::Range(0.0, 1e9));
+  c.metrics = app.add_subcommand(
+      "metrics",
+      "print STATUS and ESTIMATE in the Prometheus text format (what the daemon's "
+      "metrics.textfile_directory receives)");
+  c.reset = app.add_subcommand("reset", "restart the estimator from its initial values");
+  c.excitation = app.add_subcommand("excitation", "switch the excitation signal on or off");
+  c.excitation->add_option("state", o.on_off, "on or off")
+      ->required()
+      ->check(CLI::IsMember({"on", "off"}));
+  c.clear_fault = app.add_subcommand("clear-fault", "leave the fault state if its cause is gone");
+  return c;
+}
+
+int print_reply(const json& reply, bool raw, std::string (*format)(const json&)) {
+  std::cout << (raw ? reply.dump() + '\n' : format(reply));
+  return 0;
+}
+
+int print_metrics(Connection& connection) {
+  const json status = connection.exchange({{"request", "status"}});
+  const json estimate = connection.exchange({{"request", "estimate"}});
+  std::cout << scp::daemon::metrics::exposition(status, estimate,
+                                                status.value("actuator", "scp-estimator"));
+  return 0;
+}
+
+int run(const Subcommands& c, const Options& o) {
+  Connection connection(o.socket_path, o.timeout_s);
+  using scp::daemon::ctl::format_estimate;
+  using scp::daemon::ctl::format_status;
+  if (c.status->parsed())
+    return print_reply(connection.exchange({{"request", "status"}}), o.raw, format_status);
+  if (c.get->parsed())
+    return print_reply(connection.exchange({{"request", "estimate"}}), o.raw, format_estimate);
+  if (c.metrics->parsed()) return print_metrics(connection);
+  if (c.watch->parsed()) return watch(connection, o.rate_hz, o.count, o.raw, o.timeout_s);
+  if (c.wait->parsed()) return wait_for(connection, o.target, o.wait_limit_s, o.raw);
+  if (c.reset->parsed()) return print_ack(connection.exchange({{"request", "reset"}}), o.raw);
+  if (c.excitation->parsed()) {
+    return print_ack(connection.exchange({{"request", "excitation"}, {"enable", o.on_off == "on"}}),
+                     o.raw);
+  }
+  if (c.clear_fault->parsed())
+    return print_ack(connection.exchange({{"request", "clear-fault"}}), o.raw);
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   const scp::cli::ProgramInfo info = program_info();
   CLI::App app{"Query and command scp-estimatord over its Unix socket."};
   scp::cli::prepare(app, info);
-  std::string socket_path = default_socket();
-  std::string instance;
-  bool raw = false;
-  double timeout_s = 5.0;
-  app.add_option(
-         "--socket", socket_path,
-         "daemon socket (default: $SCP_ESTIMATOR_SOCKET or " + std::string(kDefaultSocket) + ")")
-      ->type_name("PATH");
-  app.add_option("--instance", instance,
-                 "talk to instance NAME of scp-estimatord@.service (socket "
-                 "/run/scp-estimator/NAME.sock)")
-      ->type_name("NAME")
-      ->excludes("--socket");
-  app.add_flag("--json", raw, "print the daemon's JSON objects unchanged, one per line");
-  app.add_option("--timeout", timeout_s,
-                 "seconds to wait for each answer of the daemon (default 5)")
-      ->type_name("S")
-      ->check(CLI::Range(0.1, 3600.0));
-
-  auto* status = app.add_subcommand("status", "daemon state, fault reason, loop statistics");
-  auto* get = app.add_subcommand("get", "current parameter estimate with its uncertainty");
-  auto* watch_cmd = app.add_subcommand("watch", "stream estimates");
-  double rate_hz = 1.0;
-  long count = 0;
-  watch_cmd->add_option("--rate", rate_hz, "estimates per second (default 1)")
-      ->type_name("HZ")
-      ->check(CLI::Range(0.1, 1000.0));
-  watch_cmd->add_option("--count", count, "stop after N estimates (default 0: until interrupted)")
-      ->type_name("N")
-      ->check(CLI::NonNegativeNumber);
-  auto* wait_cmd = app.add_subcommand(
-      "wait", "wait until the daemon is running, or running with every block converged");
-  std::string target;
-  double wait_limit_s = 0.0;
-  wait_cmd->add_option("--state", target, "running or converged")
-      ->type_name("STATE")
-      ->required()
-      ->check(CLI::IsMember({"running", "converged"}));
-  wait_cmd
-      ->add_option("--timeout", wait_limit_s,
-                   "give up after S seconds with exit status 3 (default 0: wait for ever)")
-      ->type_name("S")
-      ->check(CLI::Range(0.0, 1e9));
-  auto* metrics_cmd = app.add_subcommand(
-      "metrics",
-      "print STATUS and ESTIMATE in the Prometheus text format (what the daemon's "
-      "metrics.textfile_directory receives)");
-  auto* reset = app.add_subcommand("reset", "restart the estimator from its initial values");
-  auto* excitation = app.add_subcommand("excitation", "switch the excitation signal on or off");
-  std::string on_off;
-  excitation->add_option("state", on_off, "on or off")
-      ->required()
-      ->check(CLI::IsMember({"on", "off"}));
-  auto* clear_fault =
-      app.add_subcommand("clear-fault", "leave the fault state if its cause is gone");
-
+  Options options;
+  declare_options(app, options);
+  const Subcommands commands = declare_subcommands(app, options);
   if (const auto exit_code = scp::cli::parse(app, argc, argv, info)) return *exit_code;
-
-  if (!instance.empty()) {
-    // The same rule as the daemon's: the name becomes a file name.
-    if (instance.empty() || instance.size() > 64 || instance == "." || instance == ".." ||
-        instance.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789"
-                                   "._-") != std::string::npos) {
-      std::cerr << "scp-estimatorctl: --instance '" << instance
-                << "' must be 1-64 letters, digits, '.', '_' or '-'\n";
+  if (!options.instance.empty()) {
+    if (const std::string problem = scp::cli::instance_name_problem(options.instance);
+        !problem.empty()) {
+      std::cerr << "scp-estimatorctl: --" << problem << '\n';
       return scp::cli::kExitUsage;
     }
-    socket_path = "/run/scp-estimator/" + instance + ".sock";
+    options.socket_path = scp::cli::instance_socket(options.instance);
   }
   try {
-    Connection connection(socket_path, timeout_s);
-    if (status->parsed()) {
-      const json reply = connection.exchange({{"request", "status"}});
-      std::cout << (raw ? reply.dump() + '\n' : scp::daemon::ctl::format_status(reply));
-      return 0;
-    }
-    if (get->parsed()) {
-      const json reply = connection.exchange({{"request", "estimate"}});
-      std::cout << (raw ? reply.dump() + '\n' : scp::daemon::ctl::format_estimate(reply));
-      return 0;
-    }
-    if (metrics_cmd->parsed()) {
-      const json status_reply = connection.exchange({{"request", "status"}});
-      const json estimate_reply = connection.exchange({{"request", "estimate"}});
-      std::cout << scp::daemon::metrics::exposition(
-          status_reply, estimate_reply, status_reply.value("actuator", "scp-estimator"));
-      return 0;
-    }
-    if (watch_cmd->parsed()) return watch(connection, rate_hz, count, raw, timeout_s);
-    if (wait_cmd->parsed()) return wait_for(connection, target, wait_limit_s, raw);
-    if (reset->parsed()) return print_ack(connection.exchange({{"request", "reset"}}), raw);
-    if (excitation->parsed())
-      return print_ack(connection.exchange({{"request", "excitation"}, {"enable", on_off == "on"}}),
-                       raw);
-    if (clear_fault->parsed())
-      return print_ack(connection.exchange({{"request", "clear-fault"}}), raw);
+    return run(commands, options);
   } catch (const CtlError& error) {
     std::cerr << "scp-estimatorctl: " << error.what() << '\n';
     return error.exit_code();
@@ -267,5 +296,4 @@ int main(int argc, char** argv) {
     std::cerr << "scp-estimatorctl: unexpected reply from the daemon: " << error.what() << '\n';
     return kExitUnreachable;
   }
-  return 0;
 }

@@ -92,107 +92,127 @@ bool report(const scp::config::DaemonConfig& cfg,
   return fatal;
 }
 
+// The command line, as parsed.
+struct Options {
+  std::string config_path = kDefaultConfig;
+  std::string check_path;
+  std::string reference;  // --print-config-reference: "markdown" or "man"
+  bool offline = false;
+  bool json_only = false;
+  std::string log_level;
+  std::string instance;
+  scp::daemon::BatchOptions batch;  // its duration_s only when --duration is given
+  double duration_s = scp::daemon::kDefaultBatchDuration;
+  CLI::Option* duration = nullptr;
+};
+
+void declare_options(CLI::App& app, Options& o) {
+  app.add_option(
+         "-c,--config", o.config_path,
+         "configuration file, scp-estimator.yaml(5) (default " + std::string(kDefaultConfig) + ")")
+      ->type_name("FILE");
+  app.add_option("--check-config", o.check_path,
+                 "validate FILE and what it needs on this machine (group, files, directories), "
+                 "warn about suspicious values, and exit (0 = the daemon can start with it)")
+      ->type_name("FILE");
+  app.add_flag("--print-config-reference{markdown}", o.reference,
+               "print every configuration key and exit; =man prints scp-estimator.yaml(5)")
+      ->check(CLI::IsMember({"markdown", "man"}));
+  app.add_option("--log-level", o.log_level,
+                 "log only messages at LEVEL or above, overriding the configuration's log_level "
+                 "(trace, debug, info, warn, error)")
+      ->type_name("LEVEL")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}));
+  app.add_option("--instance", o.instance,
+                 "run as actuator NAME of several (scp-estimatord@NAME.service): socket "
+                 "/run/scp-estimator/NAME.sock, state /var/lib/scp-estimator/NAME, and "
+                 "actuator.name NAME unless the file sets it")
+      ->type_name("NAME")
+      ->check([](const std::string& name) { return scp::daemon::instance_name_problem(name); });
+  auto* offline =
+      app.add_flag("--offline", o.offline, "run the loop as a batch, without sleeping, and exit");
+  o.duration = app.add_option("--duration", o.duration_s,
+                              "loop time of a batch run, s (default: 200, or a replay's whole "
+                              "file)")
+                   ->type_name("S")
+                   ->check(CLI::Range(0.0, 1e9))
+                   ->needs(offline);
+  app.add_option("--record", o.batch.record_path, "write every cycle of a batch run to this CSV")
+      ->type_name("FILE")
+      ->needs(offline);
+  app.add_option("--replay", o.batch.replay_paths,
+                 "feed these CSV files (t,x,xdot,T,V; .csv.gz read as they are), or a directory's "
+                 "*.csv and *.csv.gz in name order (a rotated recording), instead of the driver")
+      ->type_name("FILE|DIR ...")
+      ->needs(offline);
+  app.add_flag("--json", o.json_only,
+               "batch run: print only the JSON summary line on stdout (no table)")
+      ->needs(offline);
+}
+
+// --check-config: exit 0 when the daemon can start with the file (warnings may be printed).
+int check_config(const std::string& path) {
+  const auto cfg = scp::config::load_config_file(path);
+  if (report(cfg, scp::config::startup_findings(cfg))) {
+    std::fprintf(stderr, "scp-estimatord: %s: fix the errors above before starting the daemon\n",
+                 path.c_str());
+    return scp::cli::kExitConfig;
+  }
+  std::cout << path << ": valid (driver " << scp::config::to_string(cfg.driver.type) << ", period "
+            << cfg.loop.period_s << " s)\n";
+  return 0;
+}
+
+int run_batch(const scp::config::DaemonConfig& cfg, const Options& o) {
+  const auto summary = scp::daemon::run_batch(cfg, o.batch);
+  if (!o.json_only) std::cout << scp::daemon::summary_table(summary);
+  // The last line on stdout is one JSON object, for scripts.
+  std::cout << summary.dump() << std::endl;
+  return 0;
+}
+
+int run_service(const scp::config::DaemonConfig& cfg) {
+  // Only the warnings: the errors are found by the start-up itself, with its own message.
+  std::vector<scp::config::Finding> warnings;
+  for (auto& finding : scp::config::startup_findings(cfg)) {
+    if (finding.severity == scp::config::Finding::Severity::warning)
+      warnings.push_back(std::move(finding));
+  }
+  report(cfg, warnings);
+  return scp::daemon::run_service(cfg);
+}
+
+int run(const Options& o) {
+  if (o.reference == "markdown") {
+    std::cout << scp::config::config_reference_markdown();
+    return 0;
+  }
+  if (o.reference == "man") {
+    std::cout << scp::config::config_reference_man(scp::cli::version());
+    return 0;
+  }
+  if (!o.check_path.empty()) return check_config(o.check_path);
+  auto cfg = scp::config::load_config_file(o.config_path);
+  if (!o.log_level.empty()) cfg.log_level = o.log_level;
+  if (!o.instance.empty()) {
+    for (const auto& warning : scp::daemon::apply_instance(cfg, o.instance))
+      std::fprintf(stderr, "scp-estimatord: warning: %s\n", warning.c_str());
+  }
+  return o.offline ? run_batch(cfg, o) : run_service(cfg);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   const scp::cli::ProgramInfo info = program_info();
   CLI::App app{"scp-estimatord: online identification of super-coiled polymer actuators"};
   scp::cli::prepare(app, info);
-  std::string config_path = kDefaultConfig;
-  std::string check_path;
-  std::string reference;
-  bool offline = false;
-  bool json_only = false;
-  std::string log_level;
-  std::string instance;
-  scp::daemon::BatchOptions batch;
-  app.add_option(
-         "-c,--config", config_path,
-         "configuration file, scp-estimator.yaml(5) (default " + std::string(kDefaultConfig) + ")")
-      ->type_name("FILE");
-  app.add_option("--check-config", check_path,
-                 "validate FILE and what it needs on this machine (group, files, directories), "
-                 "warn about suspicious values, and exit (0 = the daemon can start with it)")
-      ->type_name("FILE");
-  app.add_flag("--print-config-reference{markdown}", reference,
-               "print every configuration key and exit; =man prints scp-estimator.yaml(5)")
-      ->check(CLI::IsMember({"markdown", "man"}));
-  app.add_option("--log-level", log_level,
-                 "log only messages at LEVEL or above, overriding the configuration's log_level "
-                 "(trace, debug, info, warn, error)")
-      ->type_name("LEVEL")
-      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}));
-  app.add_option("--instance", instance,
-                 "run as actuator NAME of several (scp-estimatord@NAME.service): socket "
-                 "/run/scp-estimator/NAME.sock, state /var/lib/scp-estimator/NAME, and "
-                 "actuator.name NAME unless the file sets it")
-      ->type_name("NAME")
-      ->check([](const std::string& name) { return scp::daemon::instance_name_problem(name); });
-  auto* offline_flag =
-      app.add_flag("--offline", offline, "run the loop as a batch, without sleeping, and exit");
-  double duration_s = scp::daemon::kDefaultBatchDuration;
-  auto* duration_option =
-      app.add_option("--duration", duration_s,
-                     "loop time of a batch run, s (default: 200, or a replay's whole file)")
-          ->type_name("S")
-          ->check(CLI::Range(0.0, 1e9))
-          ->needs(offline_flag);
-  app.add_option("--record", batch.record_path, "write every cycle of a batch run to this CSV")
-      ->type_name("FILE")
-      ->needs(offline_flag);
-  app.add_option("--replay", batch.replay_paths,
-                 "feed these CSV files (t,x,xdot,T,V; .csv.gz read as they are), or a directory's "
-                 "*.csv and *.csv.gz in name order (a rotated recording), instead of the driver")
-      ->type_name("FILE|DIR ...")
-      ->needs(offline_flag);
-  app.add_flag("--json", json_only,
-               "batch run: print only the JSON summary line on stdout (no table)")
-      ->needs(offline_flag);
+  Options options;
+  declare_options(app, options);
   if (const auto exit_code = scp::cli::parse(app, argc, argv, info)) return *exit_code;
-  if (duration_option->count() > 0) batch.duration_s = duration_s;
-
+  if (options.duration->count() > 0) options.batch.duration_s = options.duration_s;
   try {
-    if (reference == "markdown") {
-      std::cout << scp::config::config_reference_markdown();
-      return 0;
-    }
-    if (reference == "man") {
-      std::cout << scp::config::config_reference_man(scp::cli::version());
-      return 0;
-    }
-    if (!check_path.empty()) {
-      const auto cfg = scp::config::load_config_file(check_path);
-      if (report(cfg, scp::config::startup_findings(cfg))) {
-        std::fprintf(stderr,
-                     "scp-estimatord: %s: fix the errors above before starting the daemon\n",
-                     check_path.c_str());
-        return scp::cli::kExitConfig;
-      }
-      std::cout << check_path << ": valid (driver " << scp::config::to_string(cfg.driver.type)
-                << ", period " << cfg.loop.period_s << " s)\n";
-      return 0;
-    }
-    auto cfg = scp::config::load_config_file(config_path);
-    if (!log_level.empty()) cfg.log_level = log_level;
-    if (!instance.empty()) {
-      for (const auto& warning : scp::daemon::apply_instance(cfg, instance))
-        std::fprintf(stderr, "scp-estimatord: warning: %s\n", warning.c_str());
-    }
-    if (offline) {
-      const auto summary = scp::daemon::run_batch(cfg, batch);
-      if (!json_only) std::cout << scp::daemon::summary_table(summary);
-      // The last line on stdout is one JSON object, for scripts.
-      std::cout << summary.dump() << std::endl;
-      return 0;
-    }
-    // Only the warnings: the errors are found by the start-up itself, with its own message.
-    std::vector<scp::config::Finding> warnings;
-    for (auto& finding : scp::config::startup_findings(cfg)) {
-      if (finding.severity == scp::config::Finding::Severity::warning)
-        warnings.push_back(std::move(finding));
-    }
-    report(cfg, warnings);
-    return scp::daemon::run_service(cfg);
+    return run(options);
   } catch (const scp::config::ConfigError& e) {
     std::fprintf(stderr, "scp-estimatord: configuration error: %s\n", e.what());
     return scp::cli::kExitConfig;  // EX_CONFIG: systemd shows it; Restart=on-failure stops on it
