@@ -61,7 +61,6 @@ class Loop {
   // Before the first cycle: the loop takes new safety limits from `cell` at the start of every
   // cycle after a store (one non-waiting attempt per cycle; a torn read waits for the next).
   void follow_safety(const SafetyCell* cell) noexcept { safety_cell_ = cell; }
-  const config::SafetySettings& safety() const noexcept { return safety_; }
   // Before the first cycle: a new excitation (a reload) is taken from `exchange` at the start of
   // a cycle, the old one given back on it. With follow_recording the rows go to the ring `ring`
   // points to at each cycle (null: no recording), instead of the constructor's: a reload starts

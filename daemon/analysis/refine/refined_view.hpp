@@ -6,24 +6,21 @@
 #include <cmath>
 #include <cstdint>
 
+#include "common/names.hpp"
+
 namespace scp::daemon::refine {
 
 // Where the solver started: the previous converged refined θ̂, the paper law's θ̂, or
 // estimator.theta0.
 enum class Seed : std::uint8_t { none, refined, paper, theta0 };
 
-inline const char* seed_name(Seed seed) noexcept {
-  switch (seed) {
-    case Seed::refined:
-      return "refined";
-    case Seed::paper:
-      return "paper";
-    case Seed::theta0:
-      return "theta0";
-    case Seed::none:
-      break;
-  }
-  return "none";
+inline constexpr NameTable<Seed, 4> kSeedNames{{{Seed::none, "none"},
+                                                {Seed::refined, "refined"},
+                                                {Seed::paper, "paper"},
+                                                {Seed::theta0, "theta0"}}};
+
+constexpr const char* seed_name(Seed seed) noexcept {
+  return name_of(kSeedNames, seed);
 }
 
 inline constexpr std::size_t kMessageChars = 128;

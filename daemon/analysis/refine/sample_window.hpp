@@ -1,11 +1,9 @@
 #pragma once
-// The sliding window of the refinement: the newest `capacity` samples in a ring preallocated once
-// (40 B per sample, stored once). samples() hands the fit one contiguous span: when the ring has
-// wrapped it first rotates the storage in place so that the oldest sample is at slot 0 (one
-// memmove of the window, ~10 ms for 300 s at 1 kHz, once per fit on the worker thread). Storing
-// each sample twice instead (at i and i + capacity) avoided the rotation but doubled the largest
-// block of the daemon's locked memory (23 MiB for the default 300 s window; measured, README).
-// No allocation after construction.
+// The sliding window of the refinement: the newest `capacity` samples in a ring preallocated once,
+// each stored once. samples() hands the fit one contiguous span: when the ring has wrapped it
+// first rotates the storage in place so that the oldest sample is at slot 0 (one memmove of the
+// window, once per fit on the worker thread). Storing each sample twice would avoid the rotation
+// but double the largest block of the daemon's locked memory. No allocation after construction.
 
 #include <cstddef>
 #include <span>
@@ -29,7 +27,6 @@ class SampleWindow {
   // Oldest first. Not const: may rotate the storage (the samples and their order stay the same).
   std::span<const scp::refine::WindowSample> samples() noexcept;
   std::size_t size() const noexcept { return size_; }
-  std::size_t capacity() const noexcept { return capacity_; }
   bool empty() const noexcept { return size_ == 0; }
   // Callers check !empty().
   const scp::refine::WindowSample& front() const noexcept { return storage_[oldest()]; }

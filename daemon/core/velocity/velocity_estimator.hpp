@@ -80,7 +80,6 @@ class VelocityEstimator {
     pending_dt_ = 0.0;
   }
 
-  double omega_c() const noexcept { return omega_; }
   double damping() const noexcept { return zeta_; }
   // 2ζ/ωc: how late ẋ̂ follows ẋ at frequencies well below the bandwidth.
   double group_delay_s() const noexcept { return 2.0 * zeta_ / omega_; }

@@ -173,7 +173,6 @@ void Compressor::run() {
       }
     } catch (const std::exception& e) {
       if (!std::filesystem::exists(path, ec)) continue;  // the retention was quicker
-      failed_.fetch_add(1);
       spdlog::warn("recording: compression failed, {} stays plain: {}", path, e.what());
     }
   }

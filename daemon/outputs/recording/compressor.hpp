@@ -37,7 +37,6 @@ class Compressor {
   void wait_idle();
 
   std::uint64_t files_compressed() const noexcept { return compressed_.load(); }
-  std::uint64_t files_failed() const noexcept { return failed_.load(); }
 
  private:
   void run();
@@ -49,7 +48,6 @@ class Compressor {
   bool busy_ = false;
   std::atomic<bool> stop_{false};
   std::atomic<std::uint64_t> compressed_{0};
-  std::atomic<std::uint64_t> failed_{0};
   std::thread thread_;
 };
 
