@@ -18,13 +18,14 @@
 #include "drivers/modbus/timing.hpp"
 #include "drivers/sim/sim_driver.hpp"
 #include "excitation/excitation.hpp"
+#include "refine/fit.hpp"
 
 namespace scp::config {
 
 namespace {
 
 constexpr double kHuge = 1e300;
-constexpr double kMaxRefineSamples = 1e6;  // 80 MB of window
+constexpr double kMaxRefineSamples = 1e6;  // window samples held in memory at most
 
 void declare_loop(Binder loop, LoopSettings& out) {
   loop.number("period_s", out.period_s, 0.001, 1e-4, 1.0,
@@ -272,9 +273,10 @@ void declare_refine(Binder refine, RefineSettings& out) {
                  "run the output-error refinement beside the paper's law (a worker thread "
                  "below the loop; inline in --offline runs)");
   refine.number("window_s", out.window_s, 300.0, 1.0, 3600.0,
-                "loop time of the sliding window fitted; memory 40 bytes per sample of it "
-                "(window_s / loop.period_s samples: 12 MB at 300 s and 1 kHz, locked with the "
-                "rest; the solver streams its sensitivities)");
+                "loop time of the sliding window fitted; memory " +
+                    std::to_string(sizeof(scp::refine::WindowSample)) +
+                    " bytes per sample of it (window_s / loop.period_s samples, locked with the "
+                    "rest; the solver streams its sensitivities)");
   refine.number("interval_s", out.interval_s, 10.0, 0.01, 3600.0,
                 "a fit every this much loop time once min_window_s of data are there; the "
                 "refined estimate stops being `best` when its fit is older than 3 intervals");
@@ -289,9 +291,8 @@ void declare_refine(Binder refine, RefineSettings& out) {
                  "batches of the batch-means check on σ: a σ is scaled up "
                  "(`refined.sigma_inflation`) where the score summed over this many contiguous "
                  "batches of the window varies significantly (99 %) more than the Newey–West "
-                 "covariance allows, i.e. an error slower than its lags (a link's timing: "
-                 "2.3–3× measured on a live 10 ms link). 0 or 1 = no check (docs/numerics.md, "
-                 "\"σ on a real link\")");
+                 "covariance allows, i.e. an error slower than its lags, such as a link's "
+                 "timing. 0 or 1 = no check (docs/numerics.md, \"σ on a real link\")");
   refine.number("max_gap_s", out.max_gap_s, 0.2, 1e-4, 60.0,
                 "a step between two samples longer than this starts a new window. Shorter gaps "
                 "(missed periods, failed reads, a stalled link) are simulated through with the "
@@ -303,9 +304,9 @@ void declare_refine(Binder refine, RefineSettings& out) {
                 "recorded for it (a DAQ's output latency, a gateway's turnaround) from T, and the "
                 "samples' timing jitter with the noise, down-weighting samples far outside it "
                 "(stamps a load spike displaced) and filtering T for the landings' jitter; "
-                "θ1..θ4 need all of it on a real link (130 µs "
-                "of delay unmodelled costs them 15 %, docs/numerics.md). `recorded`: the "
-                "instants are exact. `auto`: estimate unless driver.type is sim");
+                "θ1..θ4 need all of it on a real link (docs/numerics.md, \"Time on a real "
+                "link\"). `recorded`: the instants are exact. `auto`: estimate unless "
+                "driver.type is sim");
   refine.number("max_input_delay_s", out.max_input_delay_s, 0.005, 1e-6, 1.0,
                 "the delay is searched within ± this; a fit whose delay lands on the limit does "
                 "not converge");

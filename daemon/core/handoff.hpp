@@ -19,11 +19,10 @@ struct HandOff {
   std::uint64_t segment = 0;
 };
 
-// 16 s at 1 kHz (768 KiB, locked): the worker drains it between fits, so a fit may take that long
-// before samples are dropped (counted, STATUS refine.handoff_dropped) and the window restarts.
-// Measured: a 300 s window at 1 kHz takes 1.2 s CPU, 1-8 s wall on a loaded 2-core machine, so 2×
-// the worst wall time seen. It was 65 s (3 MiB): with the window it kept the default config's RSS
-// above 24 MiB (README, memory).
+// The worker drains the ring between fits, so a fit may take as long as the ring holds (16 s at
+// 1 kHz) before samples are dropped (counted, STATUS refine.handoff_dropped) and the window
+// restarts: twice the longest fit measured on a loaded machine, and no more, since the ring is
+// locked memory like the window (bench/results.md, memory).
 inline constexpr std::size_t kHandOffCapacity = 16384;
 using HandOffRing = rt::SpscRing<HandOff, kHandOffCapacity>;
 

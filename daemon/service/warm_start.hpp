@@ -1,8 +1,8 @@
 #pragma once
 // Whether a checkpoint may seed this daemon's estimator. The file's checksum proves it is intact,
 // not that it belongs here: one learned on another driver (another bench) or holding absurd
-// values (θ̂1 = 1e300 with a valid checksum, measured: ε ≈ −2e295 in state `running`) must be
-// refused, and the daemon starts cold.
+// values (a poisoned or diverged θ̂ with a valid checksum runs, with absurd prediction errors)
+// must be refused, and the daemon starts cold.
 
 #include <string>
 

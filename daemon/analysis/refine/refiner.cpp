@@ -164,9 +164,9 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   const auto begin = std::chrono::steady_clock::now();
   scp::refine::FitResult r = fit_(window_.samples(), start, fit_settings);
   // A second start when the previous window's fit led somewhere the data do not pin down: the
-  // output-error cost has far local minima along the poorly excited common scale of θ1..θ4
-  // (light-stiff, N1: from a 30 s fit's θ̂ the 300 s fit stayed at k/m −99 % with σ 36·θ1, where the
-  // paper law's seed reaches 3 %). Both fit the same window; the larger Gaussian likelihood wins.
+  // output-error cost has far local minima along the poorly excited common scale of θ1..θ4, where
+  // a start from the paper law's estimate finds the right one. Both fit the same window; the
+  // larger Gaussian likelihood wins.
   if (seed == Seed::refined && !well_determined(r.theta, r.sigma, known_) &&
       (cancel_ == nullptr || !cancel_->load(std::memory_order_relaxed)) && usable(paper)) {
     Vector6 other = to_vector(paper.theta_hat);
@@ -216,9 +216,8 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
     ++v.converged_fits;
     // A fit is a seed for the next window only if it determined every free θ to better than
     // its own size. A converged fit of a short, noisy window can sit in a far local minimum with a
-    // σ that says so (light-stiff, N1, first fit at 30 s: θ̂1 +400 % with σ 36·θ1); seeding the
-    // 300 s fit from it kept that minimum (refined 1.8 RMS against a bound of 0.044), where the
-    // paper law's seed leads to the right one.
+    // σ that says so; seeding the next, longer fit from it keeps that minimum, where the paper
+    // law's seed leads to the right one.
     if (well_determined(r.theta, r.sigma, known_)) {
       have_converged_ = true;
       last_converged_ = r.theta;

@@ -26,11 +26,10 @@ struct RtSettings {
 std::vector<std::string> apply_rt_settings(const RtSettings& settings);
 
 // Stack size of the threads the daemon starts. glibc's default is RLIMIT_STACK, usually 8 MiB,
-// and under mlockall(MCL_FUTURE) every byte of a new thread's stack is faulted in and locked:
-// 8 MiB × 3 threads of locked RAM (measured: 24 MiB of a 60 MiB RSS). The loop thread gets
-// 768 KiB: its 512 KiB prefault (¾ of the stack at most, rt_setup.cpp) and room above it. Every
-// other thread (socket server, refinement worker, recorder) gets 256 KiB; measured without
-// mlockall after fits and socket traffic, they touched 12–28 KiB (README, "Memory").
+// and under mlockall(MCL_FUTURE) every byte of a new thread's stack is faulted in and locked. The
+// loop thread's holds its prefault (RtSettings::prefault_stack_bytes, at most ¾ of the stack,
+// rt_setup.cpp) and room above it; every other thread (socket server, refinement worker,
+// recorder) gets several times what they were measured to touch (bench/results.md, memory).
 // set_default_thread_stack() applies to the threads started after it; returns false if glibc
 // refused.
 inline constexpr std::size_t kLoopThreadStackBytes = std::size_t{768} << 10;

@@ -195,8 +195,8 @@ struct ApiServer::Impl {
   std::size_t output_cap = 0;  // per client, from the output budget (settings.hpp)
   Clock::time_point refusal_window_start;
   // When the current epoll_wait returned: the time of every request in its batch. Its uses
-  // (idle timeout, watch phase, a command's 2 s deadline) need milliseconds, and a clock read per
-  // request was 4.6 % of the server's samples under 64 clients (perf, this VM's clock source).
+  // (idle timeout, watch phase, a command's deadline) need milliseconds, and a clock read per
+  // request showed in the server's profile under many clients.
   Clock::time_point batch_now;
   int refusals_logged = 0;
   std::uint64_t refusals_suppressed = 0;
@@ -466,9 +466,8 @@ void ApiServer::Impl::read_client(std::uint64_t id, Client& client) {
     if (n > 0) {
       client.in.append(buffer, static_cast<std::size_t>(n));
       process_lines(id, client);
-      // A short read emptied the socket: another recv would only say EAGAIN (measured: 0.85 of
-      // them per `estimate` under 64 clients, each a syscall). epoll is level-triggered, so what
-      // arrives later is reported again.
+      // A short read emptied the socket: another recv would only say EAGAIN, a system call for
+      // nothing. epoll is level-triggered, so what arrives later is reported again.
       if (static_cast<std::size_t>(n) < sizeof(buffer)) return;
     } else if (n == 0) {
       client.read_eof = true;
