@@ -8,6 +8,7 @@
 
 #include "common/names.hpp"
 #include "daemon/core/rt/rt_setup.hpp"
+#include "daemon/outputs/server/settings.hpp"
 #include "drivers/can/can_settings.hpp"
 #include "drivers/modbus/modbus_settings.hpp"
 #include "drivers/sim/sim_settings.hpp"
@@ -111,15 +112,6 @@ struct SafetySettings {
   double stuck_timeout_s = 0.0;   // x and T bit-identical this long at non-zero output; 0 = off
 };
 
-struct SocketSettings {
-  std::string path = "/run/scp-estimator/scp-estimator.sock";
-  std::string group;
-  unsigned mode = 0660;
-  std::size_t max_clients = 128;
-  std::size_t max_line_bytes = 4096;
-  double idle_timeout_s = 300.0;
-};
-
 struct StateSettings {
   std::string directory = "/var/lib/scp-estimator";
   double checkpoint_interval_s = 60.0;
@@ -171,7 +163,7 @@ struct DaemonConfig {
   estimator::EstimatorConfig estimator;
   ExcitationConfig excitation;
   SafetySettings safety;
-  SocketSettings socket;
+  daemon::server::ServerSettings socket;  // the server's own settings, filled from `socket`
   StateSettings state;
   RefineSettings refine;
   MetricsSettings metrics;

@@ -229,8 +229,8 @@ void declare_safety(Binder safety, SafetySettings& out) {
                 "fault (a dead sensor repeating its last value); latches. 0 = off");
 }
 
-void declare_socket(Binder socket, SocketSettings& out) {
-  socket.text("path", out.path, "/run/scp-estimator/scp-estimator.sock",
+void declare_socket(Binder socket, daemon::server::ServerSettings& out) {
+  socket.text("path", out.socket_path, "/run/scp-estimator/scp-estimator.sock",
               "Unix socket of the JSON API");
   socket.text("group", out.group, "",
               "group whose members may send mutating requests (reset, excitation, clear-fault)");
@@ -249,7 +249,7 @@ void declare_socket(Binder socket, SocketSettings& out) {
   }
   out.mode = static_cast<unsigned>(parsed);
   socket.integer("max_clients", out.max_clients, 128, 1, 4096, "clients connected at once");
-  socket.integer("max_line_bytes", out.max_line_bytes, 4096, 256, 1 << 20,
+  socket.integer("max_line_bytes", out.max_line, 4096, 256, 1 << 20,
                  "longest request line; longer ones are refused and the client dropped");
   socket.number("idle_timeout_s", out.idle_timeout_s, 300.0, 0.1, 1e6,
                 "clients silent this long (and not watching) are dropped");

@@ -72,7 +72,7 @@ void check_state_directory(const DaemonConfig& cfg, std::vector<Finding>& out) {
 // The daemon binds socket.path at start and does not create its directory. The unit's
 // RuntimeDirectory= makes /run/scp-estimator when the service starts, so that one may be missing.
 void check_socket_directory(const DaemonConfig& cfg, std::vector<Finding>& out) {
-  const std::string& path = cfg.socket.path;
+  const std::string& path = cfg.socket.socket_path;
   const auto slash = path.rfind('/');
   if (slash == std::string::npos || slash == 0) return;
   const std::string dir = path.substr(0, slash);

@@ -64,17 +64,6 @@ sigset_t take_signals() {
   return signals;
 }
 
-server::ServerSettings server_settings(const config::SocketSettings& socket) {
-  server::ServerSettings s;
-  s.socket_path = socket.path;
-  s.group = socket.group;
-  s.mode = socket.mode;
-  s.max_clients = socket.max_clients;
-  s.max_line = socket.max_line_bytes;
-  s.idle_timeout_s = socket.idle_timeout_s;
-  return s;
-}
-
 // The refinement: the loop hands its samples over a ring to a worker thread below it.
 struct Refinement {
   Refinement(const config::DaemonConfig& cfg, const rt::Seqlock<PublishedState>& published)
@@ -142,7 +131,7 @@ Service::Service(const config::DaemonConfig& cfg) : cfg_(cfg) {
   // bench's command stream on its way out.
   state::check_state_directory(cfg.state.directory);
   state_lock_.emplace(cfg.state.directory,
-                      "actuator " + cfg.actuator.name + ", socket " + cfg.socket.path +
+                      "actuator " + cfg.actuator.name + ", socket " + cfg.socket.socket_path +
                           (cfg.source.empty() ? "" : ", config " + cfg.source));
   driver_ = make_driver(cfg);
   driver_name_ = std::string(driver_->name());
@@ -187,13 +176,13 @@ void Service::start_server() {
   const server::ServerInfo info{SCP_RELEASE, driver_name_, cfg_.source, cfg_.actuator.name};
   const rt::Seqlock<refine::RefinedView>* refined =
       refinement_ ? refinement_->refined.get() : nullptr;
-  server_ = std::make_unique<server::ApiServer>(server_settings(cfg_.socket), info, *published_,
-                                                *commands_, refined, lateness_.get());
+  server_ = std::make_unique<server::ApiServer>(cfg_.socket, info, *published_, *commands_, refined,
+                                                lateness_.get());
   metrics_ = std::make_unique<MetricsPublisher>(cfg_, info, *published_, refined);
   reloader_ =
       std::make_unique<Reloader>(cfg_, *safety_, *excitation_, *published_, *recording_, *metrics_);
   server_->start();
-  spdlog::info("listening on {}", cfg_.socket.path);
+  spdlog::info("listening on {}", cfg_.socket.socket_path);
 }
 
 // driver.start_timeout_s counts from here: a device absent or slow at start is awaited.
