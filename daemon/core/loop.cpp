@@ -1,9 +1,7 @@
 #include "daemon/core/loop.hpp"
 
 #include <cmath>
-#include <cstring>
-#include <ctime>
-#include <limits>
+#include <cstdio>
 #include <thread>
 
 #include "common/clock.hpp"

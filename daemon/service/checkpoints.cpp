@@ -7,7 +7,6 @@
 
 #include "common/clock.hpp"
 #include "daemon/service/driver_factory.hpp"
-#include "daemon/service/warm_start.hpp"
 
 namespace scp::daemon {
 
@@ -50,25 +49,6 @@ void save_checkpoint(const config::DaemonConfig& cfg, const EstimatorStateView& 
     spdlog::debug("checkpoint written to {}", checkpoint_path(cfg));
   } catch (const std::exception& e) {
     spdlog::error("checkpoint failed, the previous one is kept: {}", e.what());
-  }
-}
-
-void warm_start(const config::DaemonConfig& cfg, Loop& loop, const std::string& driver_name) {
-  if (!cfg.state.warm_start) return;
-  const std::string path = checkpoint_path(cfg);
-  std::string warning;
-  const auto checkpoint = state::load_checkpoint(path, warning);
-  if (!checkpoint) {
-    if (!warning.empty()) spdlog::warn("{}", warning);
-    return;
-  }
-  std::string why;
-  if (!checkpoint_fits(*checkpoint, cfg, driver_name, why)) {
-    spdlog::warn("refusing checkpoint {}: {}; starting cold", path, why);
-  } else if (loop.restore(to_state(to_view(*checkpoint)))) {
-    spdlog::info("warm start from {} (saved at loop time {:.1f} s)", path, checkpoint->t);
-  } else {
-    spdlog::warn("{}: unusable estimator state; starting cold", path);
   }
 }
 

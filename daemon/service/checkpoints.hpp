@@ -1,14 +1,12 @@
 #pragma once
 // What the estimator learned, kept across restarts: the loop's published state written to
 // <state.directory>/estimator.state (atomically, checksummed: state/checkpoint.hpp) every
-// state.checkpoint_interval_s and at shutdown, and read back at start for a warm start when it
-// belongs to this actuator (warm_start.hpp).
+// state.checkpoint_interval_s and at shutdown; read back at start by warm_start.hpp.
 
 #include <string>
 
 #include "daemon/config/daemon_config.hpp"
 #include "daemon/core/estimator_state.hpp"
-#include "daemon/core/loop.hpp"
 #include "daemon/service/state/checkpoint.hpp"
 
 namespace scp::daemon {
@@ -24,9 +22,5 @@ EstimatorStateView to_view(const state::Checkpoint& checkpoint) noexcept;
 // previous file kept.
 void save_checkpoint(const config::DaemonConfig& config, const EstimatorStateView& view,
                      const std::string& driver_name);
-
-// Before the first cycle, with state.warm_start: restores the checkpoint into `loop` when it fits
-// this actuator and driver; otherwise logs why and the loop starts cold.
-void warm_start(const config::DaemonConfig& config, Loop& loop, const std::string& driver_name);
 
 }  // namespace scp::daemon

@@ -30,6 +30,7 @@
 #include "daemon/service/reloader.hpp"
 #include "daemon/service/start_wait.hpp"
 #include "daemon/service/state/state_directory.hpp"
+#include "daemon/service/warm_start.hpp"
 
 #ifndef SCP_RELEASE
 #define SCP_RELEASE "0.1.0"

@@ -1,9 +1,12 @@
 #include "daemon/service/warm_start.hpp"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 
+#include "daemon/service/checkpoints.hpp"
 #include "daemon/service/driver_factory.hpp"
 
 namespace scp::daemon {
@@ -46,6 +49,25 @@ bool checkpoint_fits(const state::Checkpoint& c, const config::DaemonConfig& con
     }
   }
   return true;
+}
+
+void warm_start(const config::DaemonConfig& cfg, Loop& loop, const std::string& driver_name) {
+  if (!cfg.state.warm_start) return;
+  const std::string path = checkpoint_path(cfg);
+  std::string warning;
+  const auto checkpoint = state::load_checkpoint(path, warning);
+  if (!checkpoint) {
+    if (!warning.empty()) spdlog::warn("{}", warning);
+    return;
+  }
+  std::string why;
+  if (!checkpoint_fits(*checkpoint, cfg, driver_name, why)) {
+    spdlog::warn("refusing checkpoint {}: {}; starting cold", path, why);
+  } else if (loop.restore(to_state(to_view(*checkpoint)))) {
+    spdlog::info("warm start from {} (saved at loop time {:.1f} s)", path, checkpoint->t);
+  } else {
+    spdlog::warn("{}: unusable estimator state; starting cold", path);
+  }
 }
 
 }  // namespace scp::daemon
