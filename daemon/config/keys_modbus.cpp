@@ -136,9 +136,8 @@ void declare_command(Binder& m, CommandRegister& c) {
   }
 }
 
-}  // namespace
-
-void declare_modbus_keys(Binder& m, ModbusSettings& out) {
+// Where the DAQ is: TCP host and port, or the RTU serial line.
+void declare_link(Binder& m, ModbusSettings& out) {
   m.choice("transport", out.transport, Transport::tcp, kTransports,
            "Modbus TCP (Ethernet) or Modbus RTU (RS-485/RS-232 serial line)");
   {
@@ -158,6 +157,12 @@ void declare_modbus_keys(Binder& m, ModbusSettings& out) {
                 "stop bits (Modbus: 1 with parity, 2 without; many devices accept 1)");
     out.parity = parity.empty() ? 'N' : parity[0];
   }
+}
+
+}  // namespace
+
+void declare_modbus_keys(Binder& m, ModbusSettings& out) {
+  declare_link(m, out);
   m.integer(
       "unit_id", out.unit_id, 1, 0, 255,
       "Modbus unit (slave) id of the DAQ: 1-247 on RTU; TCP devices often ignore it or use 255");
