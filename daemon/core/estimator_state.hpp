@@ -5,16 +5,12 @@
 
 #include <array>
 
+#include "daemon/core/learned_state.hpp"
 #include "estimator/estimator.hpp"
 
 namespace scp::daemon {
 
-struct EstimatorStateView {
-  std::array<double, 6> theta_hat{};
-  std::array<double, 16> info_mech{};    // row-major 4×4
-  std::array<double, 4> info_thermal{};  // row-major 2×2
-  std::array<double, 2> eps2_mean{};
-  double t = 0.0;
+struct EstimatorStateView : LearnedState {
   bool valid = false;  // false until the loop has published once
 };
 

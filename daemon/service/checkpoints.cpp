@@ -17,11 +17,7 @@ std::string checkpoint_path(const config::DaemonConfig& cfg) {
 state::Checkpoint to_checkpoint(const EstimatorStateView& v, const std::string& driver,
                                 const std::string& actuator, const std::string& endpoint) {
   state::Checkpoint c;
-  c.theta_hat = v.theta_hat;
-  c.info_mech = v.info_mech;
-  c.info_thermal = v.info_thermal;
-  c.eps2_mean = v.eps2_mean;
-  c.t = v.t;
+  static_cast<LearnedState&>(c) = v;
   c.driver = driver;
   c.actuator = actuator;
   c.endpoint = endpoint;
@@ -31,11 +27,7 @@ state::Checkpoint to_checkpoint(const EstimatorStateView& v, const std::string& 
 
 EstimatorStateView to_view(const state::Checkpoint& c) noexcept {
   EstimatorStateView v;
-  v.theta_hat = c.theta_hat;
-  v.info_mech = c.info_mech;
-  v.info_thermal = c.info_thermal;
-  v.eps2_mean = c.eps2_mean;
-  v.t = c.t;
+  static_cast<LearnedState&>(v) = c;
   v.valid = true;
   return v;
 }

@@ -19,21 +19,21 @@
 #include <string>
 #include <string_view>
 
+#include "daemon/core/learned_state.hpp"
+
 namespace scp::daemon::state {
+
+using daemon::LearnedState;
 
 inline constexpr std::string_view kCheckpointFormat = "scp-estimator-state";
 inline constexpr int kCheckpointVersion = 1;
 
-struct Checkpoint {
-  std::array<double, 6> theta_hat{};
-  std::array<double, 16> info_mech{};  // 4x4 row-major information matrix R = P⁻¹, mechanical block
-  std::array<double, 4> info_thermal{};  // 2x2 row-major, thermal block
-  std::array<double, 2> eps2_mean{};     // running mean of ε² per block (mechanical, thermal)
-  double t = 0.0;                        // s, loop time when saved
-  std::string driver;                    // driver name the estimate was learned with
-  std::int64_t wall_time_unix = 0;       // s since the epoch when saved
-  std::string actuator;                  // actuator.name ("" in files written before it)
-  std::string endpoint;                  // the device the driver talked to ("" likewise)
+// The estimator's learned state (t: loop time when saved) and whose it is.
+struct Checkpoint : LearnedState {
+  std::string driver;               // driver name the estimate was learned with
+  std::int64_t wall_time_unix = 0;  // s since the epoch when saved
+  std::string actuator;             // actuator.name ("" in files written before it)
+  std::string endpoint;             // the device the driver talked to ("" likewise)
 };
 
 // Writes atomically: path.tmp.<pid>, fsync, rename over `path`, fsync the directory. Throws
