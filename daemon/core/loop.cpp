@@ -388,12 +388,7 @@ void Loop::hand_off(const drivers::Sample& fed) noexcept {
 void Loop::record(const drivers::Sample& fed, RecordRing& ring) noexcept {
   const estimator::Estimate& e = estimator_.estimate();
   RecordRow row;
-  row.t = fed.t;
-  row.x = fed.x;
-  row.xdot = fed.xdot;
-  row.temperature = fed.temperature;
-  row.voltage = fed.voltage;
-  row.voltage_since = fed.voltage_since;
+  static_cast<drivers::Sample&>(row) = fed;
   row.voltage_command = voltage_command_;
   row.theta_hat = to_array<6>(e.theta_hat);
   row.sigma = to_array<6>(e.sigma);

@@ -4,20 +4,15 @@
 
 #include <array>
 #include <cstdint>
-#include <limits>
+
+#include "drivers/sample.hpp"
 
 namespace scp::daemon {
 
-struct RecordRow {
-  double t = 0.0;
-  double x = 0.0;
-  double xdot = 0.0;
-  double temperature = 0.0;
-  double voltage = 0.0;          // applied over the interval ending at t (the sample's)
+// The sample the estimator was fed (its voltage_since recorded too, so that a replay of a link's
+// run feeds the estimators the same instants), and what the loop made of it.
+struct RecordRow : drivers::Sample {
   double voltage_command = 0.0;  // sent this cycle, held until the next
-  // When `voltage` took effect, if inside the interval (drivers/sample.hpp); −∞: the whole
-  // interval. Recorded so that a replay of a link's run feeds the estimators the same instants.
-  double voltage_since = -std::numeric_limits<double>::infinity();
   std::array<double, 6> theta_hat{};
   std::array<double, 6> sigma{};
   std::array<double, 2> eps{};
