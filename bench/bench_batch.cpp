@@ -7,7 +7,7 @@
 #include <filesystem>
 #include <string>
 
-#include "daemon/batch_run.hpp"
+#include "daemon/batch/batch_run.hpp"
 #include "daemon/config/daemon_config.hpp"
 
 namespace {

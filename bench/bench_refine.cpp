@@ -78,8 +78,9 @@ void BM_Fit300sLightStiff(benchmark::State& state) {
 }
 BENCHMARK(BM_Fit300sLightStiff)->Unit(benchmark::kMillisecond)->Iterations(3);
 
-// Every later fit: seeded by the previous window's converged fit (daemon/refine/refiner.cpp), here
-// the same data's first 290 s, i.e. a refinement every 10 s.
+// Every later fit: seeded by the previous window's converged fit
+// (daemon/analysis/refine/refiner.cpp), here the same data's first 290 s, i.e. a refinement every
+// 10 s.
 void BM_Fit300sLightStiffWarm(benchmark::State& state) {
   static const Vector6 previous = [] {
     const auto& w = light_stiff_window();

@@ -2,8 +2,8 @@
 // daemon, unchanged, linked with scp_alloc_counter (which replaces malloc and operator new), so
 // that STATUS reports the loop thread's allocations after its real-time set-up (loop.allocations).
 
-#include "daemon/rt/alloc_counter.hpp"
-#include "daemon/rt/alloc_hook.hpp"
+#include "daemon/core/rt/alloc_counter.hpp"
+#include "daemon/core/rt/alloc_hook.hpp"
 
 namespace {
 

@@ -1,26 +1,21 @@
 #include "estimator/config_check.hpp"
 
 #include <cmath>
-#include <cstdio>
 #include <stdexcept>
 #include <string>
 
+#include "common/checks.hpp"
+
 namespace scp::estimator {
 namespace {
-
-std::string number(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
-}
 
 // Open lower bound when lo_open, closed upper bound always; hi = inf means unbounded.
 void check(const char* field, double v, double lo, bool lo_open, double hi, const char* unit) {
   const bool ok = std::isfinite(v) && (lo_open ? v > lo : v >= lo) && v <= hi;
   if (ok) return;
-  const std::string range = std::string(lo_open ? "(" : "[") + number(lo) + ", " +
-                            (std::isinf(hi) ? std::string("inf)") : number(hi) + "]");
-  throw std::invalid_argument(std::string("estimator config: ") + field + " = " + number(v) +
+  const std::string range = std::string(lo_open ? "(" : "[") + checks::num(lo) + ", " +
+                            (std::isinf(hi) ? std::string("inf)") : checks::num(hi) + "]");
+  throw std::invalid_argument(std::string("estimator config: ") + field + " = " + checks::num(v) +
                               " is out of range; allowed " + range + (*unit ? " " : "") + unit);
 }
 

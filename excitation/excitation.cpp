@@ -2,27 +2,17 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <numbers>
 #include <stdexcept>
 #include <string>
+
+#include "common/checks.hpp"
 
 namespace scp::excitation {
 
 namespace {
 
-std::string num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
-
-void require(bool ok, const std::string& field, const std::string& rule, double got,
-             const std::string& remedy) {
-  if (!ok) {
-    throw std::invalid_argument(field + " must be " + rule + " (got " + num(got) + "); " + remedy);
-  }
-}
+using checks::require;
 
 }  // namespace
 

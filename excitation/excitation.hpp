@@ -20,8 +20,6 @@ class Excitation {
   // O(bits)). Non-finite t gives 0 V. Not thread-safe: the PRBS position is cached (mutable).
   double voltage(double t) const noexcept;
 
-  const ExcitationSettings& settings() const noexcept { return settings_; }
-
  private:
   double prbs(double t) const noexcept;
 

@@ -7,8 +7,8 @@
 #include <cstdint>
 #include <string_view>
 
-#include "daemon/server/render.hpp"
-#include "daemon/server/request.hpp"
+#include "daemon/outputs/server/render.hpp"
+#include "daemon/outputs/server/request.hpp"
 #include "fuzz/fuzz_check.hpp"
 
 namespace server = scp::daemon::server;

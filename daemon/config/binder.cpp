@@ -222,7 +222,7 @@ void Binder::text(std::string_view key, std::string& out, std::string_view def,
 }
 
 void Binder::choice(std::string_view key, std::string& out, std::string_view def,
-                    std::initializer_list<std::string_view> allowed, std::string_view doc) {
+                    std::span<const std::string_view> allowed, std::string_view doc) {
   std::string options;
   for (const auto option : allowed) {
     if (!options.empty()) options += "|";

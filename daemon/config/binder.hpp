@@ -4,14 +4,20 @@
 // read a YAML document (reporting "key, line, allowed range" on any mistake), reject keys nobody
 // declared, and print the reference documentation.
 
+#include <array>
+#include <concepts>
 #include <cstdint>
 #include <functional>
 #include <initializer_list>
 #include <memory>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
+
+#include "common/names.hpp"
 
 namespace YAML {
 class Node;
@@ -48,10 +54,37 @@ class Binder {
               std::string_view doc);
   void integer(std::string_view key, std::int64_t& out, std::int64_t def, std::int64_t min,
                std::int64_t max, std::string_view doc);
+  // The same into the integer type the setting has (a count, a priority, a seed).
+  template <std::integral T>
+  requires(!std::same_as<T, std::int64_t>) void integer(std::string_view key, T& out,
+                                                        std::type_identity_t<T> def,
+                                                        std::type_identity_t<T> min,
+                                                        std::type_identity_t<T> max,
+                                                        std::string_view doc) {
+    std::int64_t value = 0;
+    integer(key, value, static_cast<std::int64_t>(def), static_cast<std::int64_t>(min),
+            static_cast<std::int64_t>(max), doc);
+    out = static_cast<T>(value);
+  }
   void boolean(std::string_view key, bool& out, bool def, std::string_view doc);
   void text(std::string_view key, std::string& out, std::string_view def, std::string_view doc);
   void choice(std::string_view key, std::string& out, std::string_view def,
-              std::initializer_list<std::string_view> allowed, std::string_view doc);
+              std::span<const std::string_view> allowed, std::string_view doc);
+  void choice(std::string_view key, std::string& out, std::string_view def,
+              std::initializer_list<std::string_view> allowed, std::string_view doc) {
+    choice(key, out, def, std::span<const std::string_view>(allowed.begin(), allowed.size()), doc);
+  }
+  // A choice read into an enumeration, whose table names the allowed values: the reference and
+  // the errors list the names, the program sees only the enumeration.
+  template <class E, std::size_t N>
+  void choice(std::string_view key, E& out, E def, const NameTable<E, N>& allowed,
+              std::string_view doc) {
+    std::array<std::string_view, N> names{};
+    for (std::size_t i = 0; i < N; ++i) names[i] = allowed[i].name;
+    std::string text;
+    choice(key, text, name_of(allowed, def), std::span<const std::string_view>(names), doc);
+    out = *value_of(allowed, text);
+  }
   // A fixed-length list of numbers, each in [min, max] (e.g. theta0: 6 numbers).
   void numbers(std::string_view key, std::vector<double>& out, const std::vector<double>& def,
                std::size_t count, double min, double max, std::string_view doc);

@@ -6,7 +6,9 @@
 #include <string>
 #include <vector>
 
-#include "daemon/rt/rt_setup.hpp"
+#include "common/names.hpp"
+#include "daemon/core/rt/rt_setup.hpp"
+#include "daemon/outputs/server/settings.hpp"
 #include "drivers/can/can_settings.hpp"
 #include "drivers/modbus/modbus_settings.hpp"
 #include "drivers/sim/sim_settings.hpp"
@@ -16,6 +18,48 @@
 namespace scp::config {
 
 class Binder;
+
+// The choices of the file, as the program sees them once read: each table spells the names the
+// file uses (and the reference, the errors and the logs show).
+enum class DriverType : std::uint8_t { sim, replay, modbus, can };
+inline constexpr NameTable<DriverType, 4> kDriverTypes{{{DriverType::sim, "sim"},
+                                                        {DriverType::replay, "replay"},
+                                                        {DriverType::modbus, "modbus"},
+                                                        {DriverType::can, "can"}}};
+
+enum class VelocityMethod : std::uint8_t { central_difference, filtered };
+inline constexpr NameTable<VelocityMethod, 2> kVelocityMethods{
+    {{VelocityMethod::central_difference, "central_difference"},
+     {VelocityMethod::filtered, "filtered"}}};
+
+enum class ExcitationProfile : std::uint8_t { paper, custom };
+inline constexpr NameTable<ExcitationProfile, 2> kExcitationProfiles{
+    {{ExcitationProfile::paper, "paper"}, {ExcitationProfile::custom, "custom"}}};
+
+enum class LinkTiming : std::uint8_t { automatic, estimate, recorded };
+inline constexpr NameTable<LinkTiming, 3> kLinkTimings{{{LinkTiming::automatic, "auto"},
+                                                        {LinkTiming::estimate, "estimate"},
+                                                        {LinkTiming::recorded, "recorded"}}};
+
+enum class Compression : std::uint8_t { none, gzip };
+inline constexpr NameTable<Compression, 2> kCompressions{
+    {{Compression::none, "none"}, {Compression::gzip, "gzip"}}};
+
+constexpr const char* to_string(DriverType v) noexcept {
+  return name_of(kDriverTypes, v);
+}
+constexpr const char* to_string(VelocityMethod v) noexcept {
+  return name_of(kVelocityMethods, v);
+}
+constexpr const char* to_string(ExcitationProfile v) noexcept {
+  return name_of(kExcitationProfiles, v);
+}
+constexpr const char* to_string(LinkTiming v) noexcept {
+  return name_of(kLinkTimings, v);
+}
+constexpr const char* to_string(Compression v) noexcept {
+  return name_of(kCompressions, v);
+}
 
 struct LoopSettings {
   double period_s = 0.001;
@@ -31,7 +75,7 @@ struct ActuatorSettings {
 };
 
 struct VelocitySettings {
-  std::string method = "central_difference";  // or "filtered"
+  VelocityMethod method = VelocityMethod::central_difference;
   double bandwidth_hz = 20.0;
   double damping = 0.7071;
 };
@@ -41,7 +85,7 @@ struct ReplaySettings {
 };
 
 struct DriverSelection {
-  std::string type = "sim";  // sim | replay | modbus | can
+  DriverType type = DriverType::sim;
   // How long the service awaits a device that has not answered since start; 0 = without limit.
   double start_timeout_s = 0.0;
   drivers::sim::SimSettings sim;
@@ -53,7 +97,7 @@ struct DriverSelection {
 
 struct ExcitationConfig {
   bool enabled = true;  // at start; `excitation on|off` changes it at run time
-  std::string profile = "paper";
+  ExcitationProfile profile = ExcitationProfile::paper;
   excitation::ExcitationSettings settings;
 };
 
@@ -68,15 +112,6 @@ struct SafetySettings {
   double stuck_timeout_s = 0.0;   // x and T bit-identical this long at non-zero output; 0 = off
 };
 
-struct SocketSettings {
-  std::string path = "/run/scp-estimator/scp-estimator.sock";
-  std::string group;
-  unsigned mode = 0660;
-  std::int64_t max_clients = 128;
-  std::int64_t max_line_bytes = 4096;
-  double idle_timeout_s = 300.0;
-};
-
 struct StateSettings {
   std::string directory = "/var/lib/scp-estimator";
   double checkpoint_interval_s = 60.0;
@@ -84,8 +119,8 @@ struct StateSettings {
   double warm_start_theta_max = 1e6;  // see daemon_keys.cpp
 };
 
-// The output-error refinement beside the paper's law (daemon/refine/, refine/fit.hpp): a worker
-// thread below the loop fits θ to a sliding window of the samples the estimator was fed.
+// The output-error refinement beside the paper's law (daemon/analysis/refine/, refine/fit.hpp): a
+// worker thread below the loop fits θ to a sliding window of the samples the estimator was fed.
 struct RefineSettings {
   bool enabled = true;
   double window_s = 300.0;      // the sliding window fitted (memory: see docs/configuration.md)
@@ -98,10 +133,9 @@ struct RefineSettings {
   // (missed periods, a failed read) with the voltage the DAC held.
   double max_gap_s = 0.2;
   // The link's timing: the voltage's delay relative to its recorded switch instants and the
-  // samples' timing jitter, "estimate"d, taken as "recorded" (exact), or "auto": estimated unless
-  // the driver is the simulated plant (exact instants); resolved by the loader into
-  // estimate_link_timing.
-  std::string link_timing = "auto";
+  // samples' timing jitter, estimated, taken as recorded (exact), or automatic: estimated unless
+  // the driver is the simulated plant (exact instants); resolved into estimate_link_timing.
+  LinkTiming link_timing = LinkTiming::automatic;
   bool estimate_link_timing = false;
   double max_input_delay_s = 0.005;  // the delay is searched within ± this
 };
@@ -114,11 +148,11 @@ struct MetricsSettings {
 
 // Recording in service mode: rotating CSV files written by a non-real-time thread.
 struct RecordingSettings {
-  std::string directory;              // "" = no recording
-  double rotate_size_mib = 64.0;      // a new file after this many MiB (0 = no size limit)
-  double rotate_interval_s = 3600.0;  // a new file after this long (0 = no time limit)
-  std::int64_t keep_files = 168;      // older files are deleted (0 = keep all)
-  std::string compress = "none";      // none | gzip: rotated files, by a thread below the recorder
+  std::string directory;                     // "" = no recording
+  double rotate_size_mib = 64.0;             // a new file after this many MiB (0 = no size limit)
+  double rotate_interval_s = 3600.0;         // a new file after this long (0 = no time limit)
+  std::size_t keep_files = 168;              // older files are deleted (0 = keep all)
+  Compression compress = Compression::none;  // rotated files, by a thread below the recorder
 };
 
 struct DaemonConfig {
@@ -129,13 +163,19 @@ struct DaemonConfig {
   estimator::EstimatorConfig estimator;
   ExcitationConfig excitation;
   SafetySettings safety;
-  SocketSettings socket;
+  daemon::server::ServerSettings socket;  // the server's own settings, filled from `socket`
   StateSettings state;
   RefineSettings refine;
   MetricsSettings metrics;
   RecordingSettings recording;
   std::string log_level = "info";
 };
+
+// Fills the settings that other keys decide: the estimator's sample period and input validity
+// follow the loop and the safety limits, the simulated sensor reads the actuator's ambient, the
+// paper's excitation profile, the refinement's link timing. The loader calls it after reading;
+// a test that starts from the structs' defaults calls it to get what an empty file gives.
+void derive_settings(DaemonConfig& config);
 
 // Declares every key on `root` and fills `out`. Throws ConfigError naming key, line and range.
 void declare_daemon_keys(Binder& root, DaemonConfig& out);

@@ -14,16 +14,18 @@
 #include "daemon/config/daemon_config.hpp"
 #include "daemon/config/keys_can.hpp"
 #include "daemon/config/keys_modbus.hpp"
+#include "daemon/programs/cli/instance_names.hpp"
 #include "drivers/modbus/timing.hpp"
 #include "drivers/sim/sim_driver.hpp"
 #include "excitation/excitation.hpp"
+#include "refine/fit.hpp"
 
 namespace scp::config {
 
 namespace {
 
 constexpr double kHuge = 1e300;
-constexpr double kMaxRefineSamples = 1e6;  // 80 MB of window
+constexpr double kMaxRefineSamples = 1e6;  // window samples held in memory at most
 
 void declare_loop(Binder loop, LoopSettings& out) {
   loop.number("period_s", out.period_s, 0.001, 1e-4, 1.0,
@@ -31,19 +33,17 @@ void declare_loop(Binder loop, LoopSettings& out) {
   loop.number("overrun_warning_interval_s", out.overrun_warning_interval_s, 10.0, 0.1, 3600.0,
               "at most one log line about overruns per this many seconds");
   Binder rt = loop.section("realtime", "real-time set-up of the loop thread");
-  std::int64_t priority = 0;
-  rt.integer("priority", priority, 80, 0, 99,
+  rt.integer("priority", out.realtime.priority, 80, 0, 99,
              "SCHED_FIFO priority of the loop thread; 0 = ordinary scheduling");
-  out.realtime.priority = static_cast<int>(priority);
-  std::int64_t cpu = -1;
+  int cpu = -1;
   rt.integer("cpu", cpu, -1, -1, 1023, "CPU the loop thread is pinned to; -1 = any");
   out.realtime.cpus.clear();
-  if (cpu >= 0) out.realtime.cpus.push_back(static_cast<int>(cpu));
+  if (cpu >= 0) out.realtime.cpus.push_back(cpu);
   rt.boolean("lock_memory", out.realtime.lock_memory, true,
              "mlockall() and prefault the heap so the loop never page-faults");
-  std::int64_t heap_mib = 0;
+  std::size_t heap_mib = 0;
   rt.integer("prefault_heap_mib", heap_mib, 0, 0, 4096, "MiB of heap touched at start-up");
-  out.realtime.prefault_heap_bytes = static_cast<std::size_t>(heap_mib) << 20;
+  out.realtime.prefault_heap_bytes = heap_mib << 20;
   rt.boolean("required", out.realtime.required, false,
              "true: fail to start when any real-time setting cannot be applied (else: warn)");
 }
@@ -53,10 +53,7 @@ void declare_actuator(Binder actuator, ActuatorSettings& out) {
                 "name of this actuator: kept in its checkpoint (a warm start from another "
                 "actuator's checkpoint is refused), the actuator label of its metrics, shown in "
                 "STATUS; give each actuator on a PC its own (letters, digits, '.', '_', '-')");
-  if (out.name.empty() || out.name.size() > 64 ||
-      out.name.find_first_not_of(
-          "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789._-") !=
-          std::string::npos) {
+  if (!cli::is_plain_name(out.name)) {
     actuator.fail("name", "'" + out.name +
                               "' is not a name of 1-64 letters, digits, '.', '_' or '-'; choose "
                               "one such as bench-a");
@@ -81,17 +78,13 @@ void declare_sim(Binder sim, drivers::sim::SimSettings& out) {
   plant.number("k", p.k, 181.3, 1e-9, 1e9, "stiffness in N/m");
   plant.number("alpha1", p.alpha1, 0.08, 0.0, 1e6, "thermal damping coefficient in Ns/(m·°C)");
   plant.number("alpha2", p.alpha2, 0.01, -1e6, 1e6, "thermal stiffness coefficient in N/°C");
-  std::int64_t substeps = 0;
-  sim.integer("substeps", substeps, 20, 1, 1000, "RK4 sub-steps per millisecond of plant time");
-  out.substeps = static_cast<int>(substeps);
+  sim.integer("substeps", out.substeps, 20, 1, 1000, "RK4 sub-steps per millisecond of plant time");
   Binder noise = sim.section("noise", "Gaussian sensor noise, standard deviation (0 = none)");
   noise.number("x", out.noise_x, 0.0, 0.0, 1.0, "on x, in m");
   noise.number("xdot", out.noise_xdot, 0.0, 0.0, 10.0, "on ẋ, in m/s");
   noise.number("temperature", out.noise_temperature, 0.0, 0.0, 100.0, "on T, in °C");
   noise.number("voltage", out.noise_voltage, 0.0, 0.0, 10.0, "on the voltage read back, in V");
-  std::int64_t seed = 0;
-  noise.integer("seed", seed, 1, 0, std::int64_t{1} << 62, "seed of the noise generator");
-  out.seed = static_cast<std::uint64_t>(seed);
+  noise.integer("seed", out.seed, 1, 0, std::uint64_t{1} << 62, "seed of the noise generator");
   sim.boolean("measure_xdot", out.measure_xdot, true,
               "false: the simulated device has no velocity sensor (ẋ is estimated from x)");
   Binder drift = sim.section("drift", "relative drift per hour of each physical parameter");
@@ -115,15 +108,13 @@ void declare_sim(Binder sim, drivers::sim::SimSettings& out) {
                "temperature reported by temperature_out_of_range, °C");
 }
 
-void declare_driver(Binder driver, DriverSelection& out, const ActuatorSettings& actuator) {
-  driver.choice("type", out.type, "sim", {"sim", "replay", "modbus", "can"},
-                "which device the loop talks to");
+void declare_driver(Binder driver, DriverSelection& out) {
+  driver.choice("type", out.type, DriverType::sim, kDriverTypes, "which device the loop talks to");
   driver.number("start_timeout_s", out.start_timeout_s, 0.0, 0.0, 86400.0,
                 "s a device absent or silent at start is awaited (STARTING, 0 V, retried with "
                 "back-off) before the daemon exits with 69 (EX_UNAVAILABLE, not restarted by the "
                 "unit); 0 = wait without limit");
   declare_sim(driver.section("sim", "the simulated SCP actuator (type: sim)"), out.sim);
-  out.sim.ambient_c = actuator.ambient_c;
   Binder replay = driver.section("replay", "a recorded CSV played back (type: replay)");
   replay.text("file", out.replay.file, "",
               "CSV with header t,x,xdot,T,V (SI units, T in °C; t increasing, gaps allowed)");
@@ -132,8 +123,8 @@ void declare_driver(Binder driver, DriverSelection& out, const ActuatorSettings&
   Binder can = driver.section("can", "a SocketCAN device (type: can)");
   declare_can_keys(can, out.can);
   Binder velocity = driver.section("velocity", "ẋ estimated from x when the device has no ẋ");
-  velocity.choice("method", out.velocity.method, "central_difference",
-                  {"central_difference", "filtered"},
+  velocity.choice("method", out.velocity.method, VelocityMethod::central_difference,
+                  kVelocityMethods,
                   "central_difference: 3-point derivative, every signal delayed one sample to "
                   "match (no bias); filtered: causal differentiator whose lag biases θ1..θ4");
   velocity.number("bandwidth_hz", out.velocity.bandwidth_hz, 20.0, 0.01, 1e4,
@@ -189,7 +180,7 @@ void declare_estimator(Binder est, estimator::EstimatorConfig& out) {
 void declare_excitation(Binder exc, ExcitationConfig& out) {
   exc.boolean("enabled", out.enabled, true,
               "excite at start (else hold 0 V until `excitation on`)");
-  exc.choice("profile", out.profile, "paper", {"paper", "custom"},
+  exc.choice("profile", out.profile, ExcitationProfile::paper, kExcitationProfiles,
              "paper: the four-sine voltage of Section IV; custom: the keys below");
   auto& s = out.settings;
   exc.number("v_max", s.v_max, 3.2, 0.0, 1e3, "upper clamp of the excitation in V (custom)");
@@ -213,12 +204,9 @@ void declare_excitation(Binder exc, ExcitationConfig& out) {
   Binder prbs = exc.section("prbs", "pseudo-random binary sequence (custom)");
   prbs.number("amplitude_v", s.prbs.amplitude, 0.0, 0.0, 1e3, "±amplitude in V; 0 disables it");
   prbs.number("bit_period_s", s.prbs.bit_period_s, 1.0, 1e-4, 1e6, "duration of one bit");
-  std::int64_t order = 0;
-  prbs.integer("order", order, 7, 2, 31, "LFSR order; the sequence repeats after 2^order − 1 bits");
-  s.prbs.order = static_cast<int>(order);
-  std::int64_t seed = 0;
-  prbs.integer("seed", seed, 1, 1, 0x7fffffff, "LFSR seed (non-zero)");
-  s.prbs.seed = static_cast<std::uint32_t>(seed);
+  prbs.integer("order", s.prbs.order, 7, 2, 31,
+               "LFSR order; the sequence repeats after 2^order − 1 bits");
+  prbs.integer("seed", s.prbs.seed, 1, 1, 0x7fffffff, "LFSR seed (non-zero)");
 }
 
 void declare_safety(Binder safety, SafetySettings& out) {
@@ -241,8 +229,8 @@ void declare_safety(Binder safety, SafetySettings& out) {
                 "fault (a dead sensor repeating its last value); latches. 0 = off");
 }
 
-void declare_socket(Binder socket, SocketSettings& out) {
-  socket.text("path", out.path, "/run/scp-estimator/scp-estimator.sock",
+void declare_socket(Binder socket, daemon::server::ServerSettings& out) {
+  socket.text("path", out.socket_path, "/run/scp-estimator/scp-estimator.sock",
               "Unix socket of the JSON API");
   socket.text("group", out.group, "",
               "group whose members may send mutating requests (reset, excitation, clear-fault)");
@@ -261,7 +249,7 @@ void declare_socket(Binder socket, SocketSettings& out) {
   }
   out.mode = static_cast<unsigned>(parsed);
   socket.integer("max_clients", out.max_clients, 128, 1, 4096, "clients connected at once");
-  socket.integer("max_line_bytes", out.max_line_bytes, 4096, 256, 1 << 20,
+  socket.integer("max_line_bytes", out.max_line, 4096, 256, 1 << 20,
                  "longest request line; longer ones are refused and the client dropped");
   socket.number("idle_timeout_s", out.idle_timeout_s, 300.0, 0.1, 1e6,
                 "clients silent this long (and not watching) are dropped");
@@ -285,46 +273,40 @@ void declare_refine(Binder refine, RefineSettings& out) {
                  "run the output-error refinement beside the paper's law (a worker thread "
                  "below the loop; inline in --offline runs)");
   refine.number("window_s", out.window_s, 300.0, 1.0, 3600.0,
-                "loop time of the sliding window fitted; memory 40 bytes per sample of it "
-                "(window_s / loop.period_s samples: 12 MB at 300 s and 1 kHz, locked with the "
-                "rest; the solver streams its sensitivities)");
+                "loop time of the sliding window fitted; memory " +
+                    std::to_string(sizeof(scp::refine::WindowSample)) +
+                    " bytes per sample of it (window_s / loop.period_s samples, locked with the "
+                    "rest; the solver streams its sensitivities)");
   refine.number("interval_s", out.interval_s, 10.0, 0.01, 3600.0,
                 "a fit every this much loop time once min_window_s of data are there; the "
                 "refined estimate stops being `best` when its fit is older than 3 intervals");
   refine.number("min_window_s", out.min_window_s, 30.0, 0.01, 3600.0,
                 "no fit on less data than this (a gap starts a new window); at most window_s");
-  std::int64_t iterations = 0;
-  refine.integer("max_iterations", iterations, 100, 1, 100000,
+  refine.integer("max_iterations", out.max_iterations, 100, 1, 100000,
                  "iterations of the solver per fit before it gives up (converged: false)");
-  out.max_iterations = static_cast<int>(iterations);
-  std::int64_t lags = 0;
-  refine.integer("hac_lags", lags, 0, 0, 100000,
+  refine.integer("hac_lags", out.hac_lags, 0, 0, 100000,
                  "residual autocorrelation lags of the Newey-West covariance; 0 = automatic "
                  "(floor(4·(N/100)^(2/9)))");
-  out.hac_lags = static_cast<int>(lags);
-  std::int64_t batches = 0;
-  refine.integer("covariance_batches", batches, 20, 0, 1000,
+  refine.integer("covariance_batches", out.covariance_batches, 20, 0, 1000,
                  "batches of the batch-means check on σ: a σ is scaled up "
                  "(`refined.sigma_inflation`) where the score summed over this many contiguous "
                  "batches of the window varies significantly (99 %) more than the Newey–West "
-                 "covariance allows, i.e. an error slower than its lags (a link's timing: "
-                 "2.3–3× measured on a live 10 ms link). 0 or 1 = no check (docs/numerics.md, "
-                 "\"σ on a real link\")");
-  out.covariance_batches = static_cast<int>(batches);
+                 "covariance allows, i.e. an error slower than its lags, such as a link's "
+                 "timing. 0 or 1 = no check (docs/numerics.md, \"σ on a real link\")");
   refine.number("max_gap_s", out.max_gap_s, 0.2, 1e-4, 60.0,
                 "a step between two samples longer than this starts a new window. Shorter gaps "
                 "(missed periods, failed reads, a stalled link) are simulated through with the "
                 "voltage the DAC held, which keeps the window long on a jittery link; keep it "
                 "below the timeout of a device watchdog that drops the output (the voltage "
                 "during a longer gap is not known)");
-  refine.choice("link_timing", out.link_timing, "auto", {"auto", "estimate", "recorded"},
+  refine.choice("link_timing", out.link_timing, LinkTiming::automatic, kLinkTimings,
                 "`estimate`: fit the voltage's delay relative to the instants the driver "
                 "recorded for it (a DAQ's output latency, a gateway's turnaround) from T, and the "
                 "samples' timing jitter with the noise, down-weighting samples far outside it "
                 "(stamps a load spike displaced) and filtering T for the landings' jitter; "
-                "θ1..θ4 need all of it on a real link (130 µs "
-                "of delay unmodelled costs them 15 %, docs/numerics.md). `recorded`: the "
-                "instants are exact. `auto`: estimate unless driver.type is sim");
+                "θ1..θ4 need all of it on a real link (docs/numerics.md, \"Time on a real "
+                "link\"). `recorded`: the instants are exact. `auto`: estimate unless "
+                "driver.type is sim");
   refine.number("max_input_delay_s", out.max_input_delay_s, 0.005, 1e-6, 1.0,
                 "the delay is searched within ± this; a fit whose delay lands on the limit does "
                 "not converge");
@@ -351,7 +333,7 @@ void declare_recording(Binder recording, RecordingSettings& out) {
   recording.integer("keep_files", out.keep_files, 168, 0, 1000000,
                     "delete the oldest of this actuator's recordings beyond this many (0 = keep "
                     "all; a compressed file counts like a plain one)");
-  recording.choice("compress", out.compress, "none", {"none", "gzip"},
+  recording.choice("compress", out.compress, Compression::none, kCompressions,
                    "gzip: compress each file once it is rotated (<name>.csv.gz, written to a "
                    "temporary file, synced, renamed; then the plain file is deleted) on a "
                    "low-priority thread; the file being written stays plain. --replay reads both. "
@@ -362,12 +344,8 @@ void declare_recording(Binder recording, RecordingSettings& out) {
 
 // Checks that span keys or belong to the libraries' own validation; reported as ConfigErrors.
 void cross_check(const Binder& root, DaemonConfig& cfg) {
-  auto& est = cfg.estimator;
-  est.nominal_period = cfg.loop.period_s;
-  est.x_abs_max = cfg.safety.position_abs_max_m;
-  est.tbar_min = cfg.safety.temperature_min_c - cfg.actuator.ambient_c;
-  est.tbar_max = cfg.safety.temperature_max_c - cfg.actuator.ambient_c;
-  est.voltage_max = std::max(cfg.safety.voltage_max_v, 1e-9) * 1.5;
+  derive_settings(cfg);
+  const auto& est = cfg.estimator;
   if (cfg.safety.temperature_min_c >= cfg.safety.temperature_max_c) {
     root.fail("safety", "safety.temperature_min_c must be below safety.temperature_max_c");
   }
@@ -383,27 +361,23 @@ void cross_check(const Binder& root, DaemonConfig& cfg) {
   if (cfg.refine.min_window_s > cfg.refine.window_s) {
     root.fail("refine", "refine.min_window_s must not exceed refine.window_s");
   }
-  cfg.refine.estimate_link_timing = cfg.refine.link_timing == "estimate" ||
-                                    (cfg.refine.link_timing == "auto" && cfg.driver.type != "sim");
-  // The window is preallocated (daemon/refine/sample_window.hpp); refuse a size that would not fit.
+  // The window is preallocated (daemon/analysis/refine/sample_window.hpp); refuse a size that would
+  // not fit.
   if (cfg.refine.enabled && cfg.refine.window_s / cfg.loop.period_s > kMaxRefineSamples) {
     root.fail("refine", "refine.window_s / loop.period_s is " +
                             std::to_string(std::llround(cfg.refine.window_s / cfg.loop.period_s)) +
                             " samples; at most " + std::to_string(std::llround(kMaxRefineSamples)) +
                             " fit in memory: shorten refine.window_s");
   }
-  if (cfg.excitation.profile == "paper") {
-    cfg.excitation.settings = excitation::paper_excitation();
-  }
-  if (cfg.driver.type == "replay" && cfg.driver.replay.file.empty()) {
+  if (cfg.driver.type == DriverType::replay && cfg.driver.replay.file.empty()) {
     root.fail("driver", "driver.type is replay but driver.replay.file is empty: name the CSV");
   }
   try {
     estimator::Estimator probe(est);
     excitation::validate(cfg.excitation.settings);
-    if (cfg.driver.type == "sim") drivers::sim::SimDriver probe_sim(cfg.driver.sim);
+    if (cfg.driver.type == DriverType::sim) drivers::sim::SimDriver probe_sim(cfg.driver.sim);
     // The timing budget, so that --check-config refuses it too, not only the driver's open().
-    if (cfg.driver.type == "modbus")
+    if (cfg.driver.type == DriverType::modbus)
       drivers::modbus::check_timing(cfg.driver.modbus, cfg.loop.period_s);
   } catch (const std::exception& e) {
     throw ConfigError(cfg.source + ": " + e.what());
@@ -433,8 +407,7 @@ YAML::Node parse_yaml(const std::string& text, const std::string& name) {
 void declare_daemon_keys(Binder& root, DaemonConfig& out) {
   declare_loop(root.section("loop", "timing of the real-time loop"), out.loop);
   declare_actuator(root.section("actuator", "facts about the actuator on the bench"), out.actuator);
-  declare_driver(root.section("driver", "the device the loop reads and drives"), out.driver,
-                 out.actuator);
+  declare_driver(root.section("driver", "the device the loop reads and drives"), out.driver);
   declare_estimator(root.section("estimator", "the filtered least-squares estimator"),
                     out.estimator);
   declare_excitation(root.section("excitation", "the identification voltage"), out.excitation);

@@ -11,33 +11,32 @@ namespace {
 using drivers::can::ByteOrder;
 using drivers::can::CanSettings;
 using drivers::can::CanSignal;
+using drivers::can::HeartbeatPayload;
+
+// intel and motorola are the DBC world's names for the same two orders.
+constexpr NameTable<ByteOrder, 4> kByteOrders{{{ByteOrder::little_endian, "little_endian"},
+                                               {ByteOrder::big_endian, "big_endian"},
+                                               {ByteOrder::little_endian, "intel"},
+                                               {ByteOrder::big_endian, "motorola"}}};
+constexpr NameTable<HeartbeatPayload, 2> kPayloads{
+    {{HeartbeatPayload::counter, "counter"}, {HeartbeatPayload::canopen, "canopen"}}};
 
 // Declares the DBC layout of one signal; `def` gives the defaults (the simulated node's layout).
 void declare_layout(Binder& b, CanSignal& sig, const CanSignal& def) {
-  std::int64_t id = 0, dlc = 0, start = 0, length = 0;
-  b.integer("frame_id", id, def.frame_id, 0, 0x1FFFFFFF,
+  b.integer("frame_id", sig.frame_id, def.frame_id, 0, 0x1FFFFFFF,
             "CAN identifier (DBC BO_ id without the 0x80000000 extended flag)");
   b.boolean("extended", sig.extended, def.extended, "29-bit identifier (else 11-bit, ≤ 0x7FF)");
-  b.integer("dlc", dlc, def.dlc, 0, 64,
+  b.integer("dlc", sig.dlc, def.dlc, 0, 64,
             "payload bytes of the frame: ≤ 8 for classic CAN; 12..64 only with fd: true");
-  b.integer("start_bit", start, def.start_bit, 0, 511,
+  b.integer("start_bit", sig.start_bit, def.start_bit, 0, 511,
             "DBC start bit: the LSB for little_endian, the MSB for big_endian (DBC numbering)");
-  b.integer("length_bits", length, def.length_bits, 1, 64, "signal length in bits");
-  std::string order;
-  b.choice("byte_order", order,
-           def.byte_order == ByteOrder::little_endian ? "little_endian" : "big_endian",
-           {"little_endian", "big_endian", "intel", "motorola"},
+  b.integer("length_bits", sig.length_bits, def.length_bits, 1, 64, "signal length in bits");
+  b.choice("byte_order", sig.byte_order, def.byte_order, kByteOrders,
            "little_endian = intel (DBC @1), big_endian = motorola (DBC @0)");
   b.boolean("signed", sig.is_signed, def.is_signed, "two's complement (DBC '-') or unsigned ('+')");
   b.number("scale", sig.scale, def.scale, -1e12, 1e12,
            "physical = raw · scale + offset, SI units (m, m/s, °C, V); DBC factor");
   b.number("offset", sig.offset, def.offset, -1e12, 1e12, "DBC offset");
-  sig.frame_id = static_cast<std::uint32_t>(id);
-  sig.dlc = static_cast<int>(dlc);
-  sig.start_bit = static_cast<int>(start);
-  sig.length_bits = static_cast<int>(length);
-  sig.byte_order = (order == "big_endian" || order == "motorola") ? ByteOrder::big_endian
-                                                                  : ByteOrder::little_endian;
 }
 
 }  // namespace
@@ -51,17 +50,15 @@ void declare_can_keys(Binder& can_section, CanSettings& out) {
   can_section.boolean("fd", out.fd, def.fd,
                       "CAN FD (frames up to 64 bytes; the interface must "
                       "be configured with `fd on`)");
-  std::int64_t tx_full = 0, max_frames = 0;
-  can_section.integer("tx_full_fault_after", tx_full, def.tx_full_fault_after, 1, 100000,
-                      "consecutive cycles with a full transmit queue before a fault");
-  can_section.integer("max_frames_per_cycle", max_frames, def.max_frames_per_cycle, 1, 100000,
+  can_section.integer("tx_full_fault_after", out.tx_full_fault_after, def.tx_full_fault_after, 1,
+                      100000, "consecutive cycles with a full transmit queue before a fault");
+  can_section.integer("max_frames_per_cycle", out.max_frames_per_cycle, def.max_frames_per_cycle, 1,
+                      100000,
                       "bound on the frames read per cycle, so a flooded bus cannot stall the loop");
   can_section.number("read_wait_s", out.read_wait_s, def.read_wait_s, 0.0, 10.0,
                      "s read() may wait for a new value of every sensor signal; 0 (real time) "
                      "never waits. Set it (e.g. 1) for --offline runs against scp-simdaq "
                      "--lockstep, whose node answers each command with one period of frames");
-  out.tx_full_fault_after = static_cast<int>(tx_full);
-  out.max_frames_per_cycle = static_cast<int>(max_frames);
 
   // Sub-binders stay alive until the cross-key checks, which fail on the offending one.
   std::vector<std::pair<std::string, Binder>> sections;
@@ -97,21 +94,16 @@ void declare_can_keys(Binder& can_section, CanSettings& out) {
     hb.boolean("enabled", h.enabled, d.enabled,
                "send the heartbeat frame (configure the DAQ's watchdog / heartbeat consumer to "
                "set its outputs to 0 V when it stops)");
-    std::int64_t id = 0;
-    hb.integer("frame_id", id, d.frame_id, 0, 0x1FFFFFFF,
+    hb.integer("frame_id", h.frame_id, d.frame_id, 0, 0x1FFFFFFF,
                "CAN identifier of the heartbeat; CANopen: 0x700 + node id (0x701..0x77F)");
-    h.frame_id = static_cast<std::uint32_t>(id);
     hb.boolean("extended", h.extended, d.extended, "29-bit identifier (else 11-bit, ≤ 0x7FF)");
     hb.number("period_ms", h.period_ms, d.period_ms, 0.0, 65535.0,
               "ms between heartbeats of loop time (CANopen producer heartbeat time 0x1017), "
               "sent after the command frame of the cycle it falls due in; keep the DAQ's "
               "timeout (consumer heartbeat time) at 2-3 x this and above a few loop periods");
-    std::string payload;
-    hb.choice("payload", payload, "counter", {"counter", "canopen"},
+    hb.choice("payload", h.payload, HeartbeatPayload::counter, kPayloads,
               "counter: one byte counting 0..255 (an alive counter); canopen: one byte 0x05 "
               "(NMT operational), what a CANopen heartbeat consumer expects");
-    h.payload = payload == "canopen" ? drivers::can::HeartbeatPayload::canopen
-                                     : drivers::can::HeartbeatPayload::counter;
   }
   sections.emplace_back("heartbeat", std::move(hb));
 

@@ -5,9 +5,9 @@
 
 #include <sstream>
 
-#include "daemon/cli/roff.hpp"
 #include "daemon/config/binder.hpp"
 #include "daemon/config/daemon_config.hpp"
+#include "daemon/programs/cli/roff.hpp"
 
 namespace scp::config {
 

@@ -6,19 +6,16 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cerrno>
-#include <cstdio>
 #include <cstring>
 #include <sstream>
+
+#include "common/checks.hpp"
 
 namespace scp::config {
 
 namespace {
 
-std::string number(double value) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g", value);
-  return text;
-}
+using checks::num;
 
 bool group_exists(const std::string& name) {
   std::vector<char> buffer(16384);
@@ -39,7 +36,7 @@ void check_group(const DaemonConfig& cfg, std::vector<Finding>& out) {
 }
 
 void check_replay(const DaemonConfig& cfg, std::vector<Finding>& out) {
-  if (cfg.driver.type != "replay") return;
+  if (cfg.driver.type != DriverType::replay) return;
   const std::string& file = cfg.driver.replay.file;
   if (::access(file.c_str(), R_OK) != 0) {
     out.push_back({Finding::Severity::error, "driver.replay.file",
@@ -75,7 +72,7 @@ void check_state_directory(const DaemonConfig& cfg, std::vector<Finding>& out) {
 // The daemon binds socket.path at start and does not create its directory. The unit's
 // RuntimeDirectory= makes /run/scp-estimator when the service starts, so that one may be missing.
 void check_socket_directory(const DaemonConfig& cfg, std::vector<Finding>& out) {
-  const std::string& path = cfg.socket.path;
+  const std::string& path = cfg.socket.socket_path;
   const auto slash = path.rfind('/');
   if (slash == std::string::npos || slash == 0) return;
   const std::string dir = path.substr(0, slash);
@@ -95,10 +92,10 @@ void check_suspicious_values(const DaemonConfig& cfg, std::vector<Finding>& out)
   const double t_max = cfg.safety.temperature_max_c;
   if (t_max >= kKelvinLike) {
     out.push_back({Finding::Severity::warning, "safety.temperature_max_c",
-                   number(t_max) +
+                   num(t_max) +
                        " °C is above the melting point of nylon (~250 °C): is it in "
                        "kelvin? " +
-                       number(t_max) + " K would be " + number(t_max - 273.15) +
+                       num(t_max) + " K would be " + num(t_max - 273.15) +
                        " °C; the key is in °C"});
   }
   const double v_max = cfg.excitation.settings.v_max;
@@ -106,8 +103,8 @@ void check_suspicious_values(const DaemonConfig& cfg, std::vector<Finding>& out)
   if (v_max > limit) {
     out.push_back(
         {Finding::Severity::warning, "excitation.v_max",
-         number(v_max) + " V is above safety.voltage_max_v " + number(limit) +
-             " V: the safety clamp cuts the excitation at " + number(limit) +
+         num(v_max) + " V is above safety.voltage_max_v " + num(limit) +
+             " V: the safety clamp cuts the excitation at " + num(limit) +
              " V, which distorts its spectrum; lower excitation.v_max or raise the limit"});
   }
 }

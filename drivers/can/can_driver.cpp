@@ -194,7 +194,7 @@ IoResult CanDriver::read(const CycleTime& now, Sample& out) noexcept {
       break;
     } else {
       ++stats_.read_errors;
-      return IoResult::fail("CAN receive failed (see errno in the daemon log)");
+      return IoResult::fail(io_failure("receive"));
     }
   }
   counters_.kernel_drops = channel_.kernel_drops();
@@ -280,7 +280,16 @@ IoResult CanDriver::send_command(double volts, bool force) noexcept {
       break;
   }
   ++stats_.write_errors;
-  return IoResult::fail("CAN send failed");
+  return IoResult::fail(io_failure("send"));
+}
+
+// In words, on the loop thread: strerrordesc_np returns glibc's static text and is thread-safe,
+// where strerror formats an unknown errno into a shared buffer.
+const char* CanDriver::io_failure(const char* operation) noexcept {
+  const char* what = strerrordesc_np(channel_.last_errno());
+  std::snprintf(io_reason_, sizeof io_reason_, "CAN %s failed on %s: %s", operation,
+                settings_.interface.c_str(), what != nullptr ? what : "unknown error");
+  return io_reason_;
 }
 
 void CanDriver::send_heartbeat_if_due() noexcept {

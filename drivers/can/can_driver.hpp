@@ -57,7 +57,6 @@ class CanDriver final : public Driver {
   DriverStats stats() const noexcept override;
 
   const CanCounters& counters() const noexcept { return counters_; }
-  const CanSettings& settings() const noexcept { return settings_; }
   // The CAN ids the driver receives (with CAN_EFF_FLAG for 29-bit ones), for the socket filter.
   std::span<const canid_t> receive_ids() const noexcept { return {ids_.data(), n_ids_}; }
 
@@ -83,6 +82,8 @@ class CanDriver final : public Driver {
   char bus_off_reason_[160] = {};
   char down_reason_[160] = {};
   char tx_full_reason_[160] = {};
+  char io_reason_[160] = {};  // the last failed receive or send, with the channel's errno
+  const char* io_failure(const char* operation) noexcept;
 
   bool started_ = false;
   double start_t_ = 0.0;

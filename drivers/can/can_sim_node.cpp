@@ -8,8 +8,10 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <memory>
 #include <utility>
 
+#include "common/clock.hpp"
 #include "drivers/can/signal_codec.hpp"
 
 namespace scp::drivers::can {
@@ -26,11 +28,7 @@ canid_t wire_id(const CanSignal& sig) noexcept {
   return sig.extended ? (sig.frame_id | CAN_EFF_FLAG) : sig.frame_id;
 }
 
-double monotonic_s() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
+using clock::monotonic_s;
 
 bool in_window(double t, double after, double duration) noexcept {
   return after >= 0 && t >= after && (duration <= 0 || t < after + duration);
@@ -156,111 +154,133 @@ int run_can_sim_node(const CanSettings& can, const sim::SimSettings& sim, double
   return run_can_sim_node(can, sim, options, stop);
 }
 
+namespace {
+
+CanChannel open_node_channel(const CanSettings& can, int fd) {
+  if (fd >= 0) return CanChannel(fd);
+  const CanHeartbeat& hb = can.heartbeat;
+  const canid_t ids[2] = {wire_id(can.command.signal),
+                          hb.extended ? (hb.frame_id | CAN_EFF_FLAG) : hb.frame_id};
+  return open_socketcan(can.interface, std::span<const canid_t>(ids, hb.enabled ? 2 : 1), can.fd);
+}
+
+// The options' fault window, applied before each step at wall time `w`.
+class FaultInjector {
+ public:
+  explicit FaultInjector(const CanNodeOptions& o) : o_(o) {}
+  void apply(CanSimNode& node, double w) {
+    const bool faulty = in_window(w, o_.fault_after_s, o_.fault_duration_s);
+    // A controller in bus-off neither sends nor receives: the sensor frames stop too (and
+    // frames still flowing would tell the daemon the controller had restarted).
+    if (o_.fault == CanNodeFault::silent || o_.fault == CanNodeFault::bus_off) {
+      node.set_silent(faulty);
+    }
+    if (o_.fault == CanNodeFault::bus_off && faulty != was_faulty_) {
+      (void)node.send_raw(
+          faulty ? error_frame(CAN_ERR_BUSOFF, 0) : error_frame(CAN_ERR_RESTARTED, 0), false);
+    }
+    if (o_.fault == CanNodeFault::error_frames && faulty) {
+      (void)node.send_raw(error_frame(CAN_ERR_CRTL, CAN_ERR_CRTL_RX_WARNING), false);
+    }
+    was_faulty_ = faulty;
+  }
+
+ private:
+  const CanNodeOptions& o_;
+  bool was_faulty_ = false;
+};
+
+// One step per wake-up by the daemon's frames, the first one by the forced 0 V command of its
+// open(). Stepping once before that would put the node a step ahead, and a read that drains the
+// queue could then take x from one step and T from the next.
+void run_lockstep(CanSimNode& node, const CanNodeOptions& o, FaultInjector& faults, double wall0,
+                  std::atomic<bool>& stop) {
+  long long k = 0;
+  while (!stop.load(std::memory_order_relaxed)) {
+    const double w = monotonic_s() - wall0;
+    if (o.duration_s > 0 && w >= o.duration_s) break;
+    pollfd p{node.fd(), POLLIN, 0};
+    const int ready = poll(&p, 1, 100);
+    if (ready <= 0) {
+      node.check_watchdog(monotonic_s() - wall0, k);  // a dead daemon sends nothing to wait on
+      continue;
+    }
+    if (p.revents & (POLLHUP | POLLERR)) break;  // the daemon closed its end
+    faults.apply(node, w);
+    node.step(static_cast<double>(k++) * o.period_s, o.period_s);
+  }
+}
+
+// One step per period, to absolute deadlines.
+void run_periodic(CanSimNode& node, const CanNodeOptions& o, FaultInjector& faults, double wall0,
+                  std::atomic<bool>& stop) {
+  const auto period_ns = std::llround(o.period_s * 1e9);
+  std::int64_t next_ns = clock::monotonic_ns();
+  for (long long k = 0; !stop.load(std::memory_order_relaxed); ++k) {
+    const double w = monotonic_s() - wall0;
+    if (o.duration_s > 0 && w >= o.duration_s) break;
+    faults.apply(node, w);
+    node.step(static_cast<double>(k) * o.period_s, o.period_s);
+    next_ns += period_ns;
+    const timespec next = clock::to_timespec(next_ns);
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, nullptr) == EINTR) {
+      if (stop.load(std::memory_order_relaxed)) break;
+    }
+  }
+}
+
+void print_summary(const CanSimNodeCounters& c, double seconds) {
+  std::printf(
+      "scp-simdaq: CAN node stopped after %.3f s: %llu commands, %llu frames sent, "
+      "%llu send failures, %llu heartbeats, %llu watchdog trips\n",
+      seconds, static_cast<unsigned long long>(c.commands),
+      static_cast<unsigned long long>(c.frames_sent),
+      static_cast<unsigned long long>(c.send_failures),
+      static_cast<unsigned long long>(c.heartbeats),
+      static_cast<unsigned long long>(c.watchdog_trips));
+  std::fflush(stdout);
+}
+
+struct FileCloser {
+  void operator()(std::FILE* f) const noexcept { std::fclose(f); }
+};
+
+}  // namespace
+
 int run_can_sim_node(const CanSettings& can, const sim::SimSettings& sim, const CanNodeOptions& o,
                      std::atomic<bool>& stop) {
-  const double period_s = o.period_s;
-  const int fd = o.fd;
-  if (!(period_s > 0.0) || !std::isfinite(period_s)) {
-    std::fprintf(stderr, "scp-simdaq: CAN node period must be > 0 s (got %g)\n", period_s);
+  if (!(o.period_s > 0.0) || !std::isfinite(o.period_s)) {
+    std::fprintf(stderr, "scp-simdaq: CAN node period must be > 0 s (got %g)\n", o.period_s);
     return 1;
   }
   try {
-    CanChannel channel;
-    if (fd >= 0) {
-      channel = CanChannel(fd);
-    } else {
-      const CanHeartbeat& hb = can.heartbeat;
-      const canid_t ids[2] = {wire_id(can.command.signal),
-                              hb.extended ? (hb.frame_id | CAN_EFF_FLAG) : hb.frame_id};
-      channel =
-          open_socketcan(can.interface, std::span<const canid_t>(ids, hb.enabled ? 2 : 1), can.fd);
-    }
-    CanSimNode node(can, sim, std::move(channel));
+    CanSimNode node(can, sim, open_node_channel(can, o.fd));
     node.set_watchdog(o.watchdog_timeout_s);
-    std::FILE* log = nullptr;
+    std::unique_ptr<std::FILE, FileCloser> log;
     if (!o.command_log.empty()) {
-      log = std::fopen(o.command_log.c_str(), "w");
-      if (log == nullptr) {
+      log.reset(std::fopen(o.command_log.c_str(), "w"));
+      if (!log) {
         std::fprintf(stderr, "scp-simdaq: cannot write the command log %s\n",
                      o.command_log.c_str());
         return 1;
       }
-      setvbuf(log, nullptr, _IOLBF, 0);  // a test may SIGKILL us: every line must be on disk
-      node.set_command_log(log);
+      setvbuf(log.get(), nullptr, _IOLBF, 0);  // a test may SIGKILL us: every line must be on disk
+      node.set_command_log(log.get());
     }
     std::printf("scp-simdaq: CAN node on %s, period %g s%s\n",
-                fd >= 0 ? ("fd " + std::to_string(fd)).c_str() : can.interface.c_str(), period_s,
-                o.lockstep ? ", lock-step" : "");
+                o.fd >= 0 ? ("fd " + std::to_string(o.fd)).c_str() : can.interface.c_str(),
+                o.period_s, o.lockstep ? ", lock-step" : "");
     std::fflush(stdout);
     const double wall0 = monotonic_s();
-    bool was_faulty = false;
-    // Applies the fault window of the options before a step at wall time `w`.
-    const auto inject = [&](double w) {
-      const bool faulty = in_window(w, o.fault_after_s, o.fault_duration_s);
-      // A controller in bus-off neither sends nor receives: the sensor frames stop too (and
-      // frames still flowing would tell the daemon the controller had restarted).
-      if (o.fault == CanNodeFault::silent || o.fault == CanNodeFault::bus_off) {
-        node.set_silent(faulty);
-      }
-      if (o.fault == CanNodeFault::bus_off && faulty != was_faulty) {
-        (void)node.send_raw(
-            faulty ? error_frame(CAN_ERR_BUSOFF, 0) : error_frame(CAN_ERR_RESTARTED, 0), false);
-      }
-      if (o.fault == CanNodeFault::error_frames && faulty) {
-        (void)node.send_raw(error_frame(CAN_ERR_CRTL, CAN_ERR_CRTL_RX_WARNING), false);
-      }
-      was_faulty = faulty;
-    };
-    const auto finish = [&] {
-      if (log != nullptr) std::fclose(log);
-      const auto& c = node.counters();
-      std::printf(
-          "scp-simdaq: CAN node stopped after %.3f s: %llu commands, %llu frames sent, "
-          "%llu send failures, %llu heartbeats, %llu watchdog trips\n",
-          monotonic_s() - wall0, static_cast<unsigned long long>(c.commands),
-          static_cast<unsigned long long>(c.frames_sent),
-          static_cast<unsigned long long>(c.send_failures),
-          static_cast<unsigned long long>(c.heartbeats),
-          static_cast<unsigned long long>(c.watchdog_trips));
-      std::fflush(stdout);
-      return 0;
-    };
+    FaultInjector faults(o);
     if (o.lockstep) {
-      // One step per wake-up by the daemon's frames, the first one by the forced 0 V command of
-      // its open(). Stepping once before that would put the node a step ahead, and a read that
-      // drains the queue could then take x from one step and T from the next.
-      long long k = 0;
-      while (!stop.load(std::memory_order_relaxed)) {
-        const double w = monotonic_s() - wall0;
-        if (o.duration_s > 0 && w >= o.duration_s) break;
-        pollfd p{node.fd(), POLLIN, 0};
-        const int ready = poll(&p, 1, 100);
-        if (ready <= 0) {
-          node.check_watchdog(monotonic_s() - wall0, k);  // a dead daemon sends nothing to wait on
-          continue;
-        }
-        if (p.revents & (POLLHUP | POLLERR)) break;  // the daemon closed its end
-        inject(w);
-        node.step(static_cast<double>(k++) * period_s, period_s);
-      }
-      return finish();
+      run_lockstep(node, o, faults, wall0, stop);
+    } else {
+      run_periodic(node, o, faults, wall0, stop);
     }
-    const auto period_ns = static_cast<long long>(std::llround(period_s * 1e9));
-    timespec next{};
-    clock_gettime(CLOCK_MONOTONIC, &next);
-    for (long long k = 0; !stop.load(std::memory_order_relaxed); ++k) {
-      const double w = monotonic_s() - wall0;
-      if (o.duration_s > 0 && w >= o.duration_s) break;
-      inject(w);
-      node.step(static_cast<double>(k) * period_s, period_s);
-      long long ns = next.tv_nsec + period_ns;
-      next.tv_sec += static_cast<time_t>(ns / 1000000000LL);
-      next.tv_nsec = static_cast<long>(ns % 1000000000LL);
-      while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, nullptr) == EINTR) {
-        if (stop.load(std::memory_order_relaxed)) break;
-      }
-    }
-    return finish();
+    log.reset();
+    print_summary(node.counters(), monotonic_s() - wall0);
+    return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "scp-simdaq: %s\n", e.what());
     return 1;

@@ -7,12 +7,13 @@
 #include <cerrno>
 #include <charconv>
 #include <cmath>
-#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string_view>
+
+#include "common/checks.hpp"
 
 namespace scp::drivers::replay {
 
@@ -25,11 +26,8 @@ enum Column : std::size_t { kT, kX, kXdot, kTemp, kV };
 // was applied over the whole interval.
 constexpr std::string_view kVoltageSinceColumn = "V_since";
 
-std::string num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
+// Values quoted from the file read back as the same doubles.
+using checks::exact_num;
 
 std::string_view trim(std::string_view s) {
   const auto* ws = " \t\r\n";
@@ -214,114 +212,149 @@ double parse_voltage_since(std::string_view text, double t, const std::string& p
   }
   if (since > t) {
     fail(path, line_no,
-         column_ref(kVoltageSinceColumn, field) + ": " + num(since) + " is after the row's t " +
-             num(t) + "; V_since is when the voltage read at t took effect, so it cannot be later");
+         column_ref(kVoltageSinceColumn, field) + ": " + exact_num(since) +
+             " is after the row's t " + exact_num(t) +
+             "; V_since is when the voltage read at t took effect, so it cannot be later");
   }
   return since;
 }
 
-Trace parse_rows(std::istream& in, const std::string& path, std::size_t& header_line_out) {
-  std::string raw;
-  std::size_t line_no = 0;
-  std::vector<std::string_view> fields;
-
-  // Header: the first line that is neither blank nor a comment.
-  std::size_t header_line = 0;
-  std::vector<std::string> header;
-  while (std::getline(in, raw)) {
-    ++line_no;
-    if (line_no == 1 && raw.rfind("\xEF\xBB\xBF", 0) == 0) raw.erase(0, 3);  // UTF-8 BOM
-    const std::string_view line = trim(raw);
-    if (is_skipped(line)) continue;
-    split(line, fields);
-    header.assign(fields.begin(), fields.end());
-    header_line = line_no;
-    break;
+// The file's lines that hold data (not blank, not a comment), numbered for the messages.
+class LineReader {
+ public:
+  explicit LineReader(std::istream& in) : in_(in) {}
+  bool next(std::string_view& line) {
+    while (std::getline(in_, raw_)) {
+      ++line_no_;
+      if (line_no_ == 1 && raw_.rfind("\xEF\xBB\xBF", 0) == 0) raw_.erase(0, 3);  // UTF-8 BOM
+      line = trim(raw_);
+      if (!is_skipped(line)) return true;
+    }
+    return false;
   }
-  if (header_line == 0) {
+  std::size_t line_no() const noexcept { return line_no_; }
+
+ private:
+  std::istream& in_;
+  std::string raw_;
+  std::size_t line_no_ = 0;
+};
+
+// Where the columns are: t, x, xdot, T and V in any order, V_since when present.
+struct Header {
+  std::size_t line = 0;
+  std::size_t fields = 0;
+  std::array<std::size_t, kColumns.size()> index{};
+  bool has_since = false;
+  std::size_t since_index = 0;
+};
+
+// The first line that is neither blank nor a comment names the columns.
+Header read_header(LineReader& reader, const std::string& path) {
+  std::string_view line;
+  if (!reader.next(line)) {
     throw TraceError(path +
                      ": empty file (no header line); the first line must name the columns, "
                      "e.g. t,x,xdot,T,V");
   }
-
-  std::array<std::size_t, kColumns.size()> index{};
+  std::vector<std::string_view> fields;
+  split(line, fields);
+  const std::vector<std::string> header(fields.begin(), fields.end());
+  Header h;
+  h.line = reader.line_no();
+  h.fields = header.size();
+  const auto unique = [&](std::vector<std::string>::const_iterator it, std::string_view name) {
+    if (std::find(it + 1, header.end(), name) != header.end()) {
+      fail(path, h.line,
+           "column '" + std::string(name) + "' appears twice in the header; keep one");
+    }
+  };
   for (std::size_t c = 0; c < kColumns.size(); ++c) {
     const auto it = std::find(header.begin(), header.end(), kColumns[c]);
     if (it == header.end()) {
-      fail(path, header_line,
+      fail(path, h.line,
            "missing column '" + std::string(kColumns[c]) +
                "' in the header; it must name t, x, xdot, T and V (any order, case-sensitive; "
                "other columns are ignored)");
     }
-    if (std::find(it + 1, header.end(), kColumns[c]) != header.end()) {
-      fail(path, header_line,
-           "column '" + std::string(kColumns[c]) + "' appears twice in the header; keep one");
-    }
-    index[c] = static_cast<std::size_t>(it - header.begin());
+    unique(it, kColumns[c]);
+    h.index[c] = static_cast<std::size_t>(it - header.begin());
   }
-  const auto since_it = std::find(header.begin(), header.end(), kVoltageSinceColumn);
-  const bool has_since = since_it != header.end();
-  const auto since_index = static_cast<std::size_t>(since_it - header.begin());
-  if (has_since && std::find(since_it + 1, header.end(), kVoltageSinceColumn) != header.end()) {
-    fail(path, header_line,
-         "column '" + std::string(kVoltageSinceColumn) + "' appears twice in the header; keep one");
-  }
+  const auto since = std::find(header.begin(), header.end(), kVoltageSinceColumn);
+  h.has_since = since != header.end();
+  if (h.has_since) unique(since, kVoltageSinceColumn);
+  h.since_index = static_cast<std::size_t>(since - header.begin());
+  return h;
+}
 
+// The five required values of a row; only xdot may be blank (not measured).
+std::array<double, kColumns.size()> parse_values(const std::vector<std::string_view>& fields,
+                                                 const Header& h, const std::string& path,
+                                                 std::size_t line_no) {
+  std::array<double, kColumns.size()> v{};
+  for (std::size_t c = 0; c < kColumns.size(); ++c) {
+    const std::string_view text = fields[h.index[c]];
+    if (c == kXdot && (text.empty() || text == "nan" || text == "NaN" || text == "NAN")) {
+      v[c] = kNotMeasured;  // velocity not measured on this device
+      continue;
+    }
+    if (text.empty()) {
+      fail(path, line_no,
+           column_ref(kColumns[c], h.index[c]) +
+               " is empty; only xdot may be left blank (not measured)");
+    }
+    if (!parse_double(text, v[c])) {
+      fail(path, line_no,
+           column_ref(kColumns[c], h.index[c]) + ": cannot parse '" + std::string(text) +
+               "' as a number; write plain numbers with '.' as decimal point (e.g. 1.5e-3)");
+    }
+  }
+  if (!std::isfinite(v[kT])) {
+    fail(path, line_no,
+         column_ref("t", h.index[kT]) + ": time '" + std::string(fields[h.index[kT]]) +
+             "' is not finite; every row needs a finite time in seconds");
+  }
+  return v;
+}
+
+Trace parse_rows(std::istream& in, const std::string& path, std::size_t& header_line_out) {
+  LineReader reader(in);
+  const Header h = read_header(reader, path);
   Trace trace;
-  std::vector<std::size_t> row_lines;
-  while (std::getline(in, raw)) {
-    ++line_no;
-    const std::string_view line = trim(raw);
-    if (is_skipped(line)) continue;
+  std::size_t previous_line = 0;
+  std::vector<std::string_view> fields;
+  std::string_view line;
+  while (reader.next(line)) {
+    const std::size_t line_no = reader.line_no();
     split(line, fields);
-    if (fields.size() != header.size()) {
+    if (fields.size() != h.fields) {
       fail(path, line_no,
            std::to_string(fields.size()) + " fields, but the header (line " +
-               std::to_string(header_line) + ") has " + std::to_string(header.size()) +
+               std::to_string(h.line) + ") has " + std::to_string(h.fields) +
                "; every row needs one value per header column");
     }
-    std::array<double, kColumns.size()> v{};
-    for (std::size_t c = 0; c < kColumns.size(); ++c) {
-      const std::string_view text = fields[index[c]];
-      if (c == kXdot && (text.empty() || text == "nan" || text == "NaN" || text == "NAN")) {
-        v[c] = kNotMeasured;  // velocity not measured on this device
-        continue;
-      }
-      if (text.empty()) {
-        fail(path, line_no,
-             column_ref(kColumns[c], index[c]) +
-                 " is empty; only xdot may be left blank (not measured)");
-      }
-      if (!parse_double(text, v[c])) {
-        fail(path, line_no,
-             column_ref(kColumns[c], index[c]) + ": cannot parse '" + std::string(text) +
-                 "' as a number; write plain numbers with '.' as decimal point (e.g. 1.5e-3)");
-      }
-    }
-    if (!std::isfinite(v[kT])) {
-      fail(path, line_no,
-           column_ref("t", index[kT]) + ": time '" + std::string(fields[index[kT]]) +
-               "' is not finite; every row needs a finite time in seconds");
-    }
+    const auto v = parse_values(fields, h, path, line_no);
     if (!trace.rows.empty() && !(v[kT] > trace.rows.back().t)) {
       fail(path, line_no,
-           column_ref("t", index[kT]) + ": time " + num(v[kT]) +
-               " is not after the previous row's " + num(trace.rows.back().t) + " (line " +
-               std::to_string(row_lines.back()) +
+           column_ref("t", h.index[kT]) + ": time " + exact_num(v[kT]) +
+               " is not after the previous row's " + exact_num(trace.rows.back().t) + " (line " +
+               std::to_string(previous_line) +
                "); rows must be in strictly increasing time order, without duplicates");
     }
     Sample s;
-    if (has_since)
-      s.voltage_since = parse_voltage_since(fields[since_index], v[kT], path, line_no, since_index);
+    if (h.has_since) {
+      s.voltage_since =
+          parse_voltage_since(fields[h.since_index], v[kT], path, line_no, h.since_index);
+    }
     s.t = v[kT];
     s.x = v[kX];
     s.xdot = v[kXdot];
     s.temperature = v[kTemp];
     s.voltage = v[kV];
     trace.rows.push_back(s);
-    row_lines.push_back(line_no);
+    previous_line = line_no;
   }
-  header_line_out = header_line;
+  header_line_out = h.line;
   return trace;
 }
 
@@ -357,8 +390,8 @@ Trace load_traces(const std::vector<std::string>& paths) {
       continue;
     }
     if (!all.rows.empty() && !(part.rows.front().t > all.rows.back().t)) {
-      throw TraceError(file + ": the first row's time " + num(part.rows.front().t) +
-                       " is not after the last time " + num(all.rows.back().t) + " of " +
+      throw TraceError(file + ": the first row's time " + exact_num(part.rows.front().t) +
+                       " is not after the last time " + exact_num(all.rows.back().t) + " of " +
                        last_with_rows +
                        "; give the files in time order (a rotated recording's names sort so), "
                        "each file of one run once");

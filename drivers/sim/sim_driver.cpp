@@ -2,25 +2,19 @@
 
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <string>
 #include <thread>
+
+#include "common/checks.hpp"
 
 namespace scp::drivers::sim {
 
 namespace {
 
-std::string num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
-
 void require(bool ok, const std::string& field, const std::string& rule, double got,
              const std::string& remedy) {
-  if (ok) return;
-  throw DriverError(field + " must be " + rule + " (got " + num(got) + "); " + remedy);
+  checks::require<DriverError>(ok, field, rule, got, remedy);
 }
 
 void require_positive(double v, const char* field, const char* table_value) {

@@ -55,7 +55,6 @@ class SimDriver final : public Driver {
   bool true_theta(double t, std::array<double, 6>& theta) const noexcept override;
 
   const Plant& plant() const noexcept { return plant_; }
-  const SimSettings& settings() const noexcept { return settings_; }
   double command() const noexcept { return command_; }
   // The heater current read with the latest sample (A), NaN when settings().measure_current is
   // false. Not in Sample yet: the driver map has no current channel.

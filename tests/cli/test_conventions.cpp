@@ -1,9 +1,9 @@
-// daemon/cli: the conventions, the man page and the completion generated from a CLI11 App.
+// daemon/programs/cli: the conventions, the man page and the completion generated from a CLI11 App.
 
 #include <gtest/gtest.h>
 
-#include "daemon/cli/conventions.hpp"
-#include "daemon/cli/roff.hpp"
+#include "daemon/programs/cli/conventions.hpp"
+#include "daemon/programs/cli/roff.hpp"
 
 namespace scp::cli {
 namespace {

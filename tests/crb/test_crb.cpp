@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "daemon/batch_run.hpp"
+#include "daemon/batch/batch_run.hpp"
 #include "daemon/config/binder.hpp"
 #include "daemon/config/daemon_config.hpp"
 #include "tests/crb/fd_fisher.hpp"
@@ -93,7 +93,7 @@ TEST(Experiment, RefusesWhatItCannotBound) {
   cfg.driver.sim.drift.b = 0.1;
   EXPECT_THROW(scp::tools::crb::simulate(cfg, 10.0, 10.0), std::invalid_argument);
   cfg = paper_config();
-  cfg.driver.type = "replay";
+  cfg.driver.type = scp::config::DriverType::replay;
   EXPECT_THROW(scp::tools::crb::simulate(cfg, 10.0, 10.0), std::invalid_argument);
   const Experiment e = scp::tools::crb::simulate(paper_config(), 10.0, 10.0);
   EXPECT_THROW(report(e, {0.0, 1e-3}), std::invalid_argument);

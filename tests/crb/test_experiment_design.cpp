@@ -61,10 +61,10 @@ TEST(ExperimentDesign, LightStiffsOwnExcitationBoundsThetaWithinTheIssuesLimits)
 
 TEST(ExperimentDesign, ThePaperActuatorAndHeavySlowMeetTheLimitsWithThePapersVoltage) {
   const auto paper = scp::config::load_config_file(kSource + "/config/paper.yaml");
-  EXPECT_EQ(paper.excitation.profile, "paper");
+  EXPECT_EQ(paper.excitation.profile, scp::config::ExcitationProfile::paper);
   expect_within_limits(paper, "paper");
   const auto heavy = scp::config::load_config_file(kSource + "/config/actuators/heavy-slow.yaml");
-  EXPECT_EQ(heavy.excitation.profile, "paper");
+  EXPECT_EQ(heavy.excitation.profile, scp::config::ExcitationProfile::paper);
   expect_within_limits(heavy, "heavy-slow");
 }
 

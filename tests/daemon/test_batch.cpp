@@ -7,7 +7,7 @@
 #include <fstream>
 #include <string>
 
-#include "daemon/batch_run.hpp"
+#include "daemon/batch/batch_run.hpp"
 #include "daemon/config/daemon_config.hpp"
 
 namespace scp::daemon {
@@ -178,6 +178,29 @@ TEST(Batch, SensorFaultInTheSimulatorEndsInFaultAtZeroVolts) {
   const auto s = run_batch(cfg, options);
   EXPECT_EQ(s["state"], "fault");
   EXPECT_NE(s["fault_reason"].get<std::string>().find("temperature"), std::string::npos);
+}
+
+// A zero true θ (a plant without thermal damping: θ2 = α1/m = 0) has no relative error: null in
+// the summary as in ESTIMATE (the summary is ESTIMATE's rendering), a dash in the table, never
+// "inf"; the other parameters keep theirs.
+TEST(Batch, AZeroTrueParameterHasNoRelativeError) {
+  auto cfg = config::load_config_file(kPaper);
+  cfg.refine.enabled = false;
+  cfg.driver.sim.plant.alpha1 = 0.0;
+  BatchOptions options;
+  options.duration_s = 2.0;
+  const auto s = run_batch(cfg, options);
+  ASSERT_EQ(s["theta_true"][1].get<double>(), 0.0) << s.dump();
+  EXPECT_TRUE(s["rel_error"][1].is_null()) << s["rel_error"].dump();
+  for (const std::size_t i : {0U, 2U, 3U, 4U, 5U}) {
+    EXPECT_TRUE(s["rel_error"][i].is_number()) << i << ": " << s["rel_error"].dump();
+  }
+  const std::string table = summary_table(s);
+  EXPECT_EQ(table.find("inf"), std::string::npos) << table;
+  const auto row = table.find("theta2 a1/m");
+  ASSERT_NE(row, std::string::npos) << table;
+  const std::string theta2 = table.substr(row, table.find('\n', row) - row);
+  EXPECT_NE(theta2.find(" - "), std::string::npos) << theta2;
 }
 
 }  // namespace

@@ -11,8 +11,8 @@
 #include <fstream>
 #include <thread>
 
-#include "daemon/compressor.hpp"
-#include "daemon/recorder.hpp"
+#include "daemon/outputs/recording/compressor.hpp"
+#include "daemon/outputs/recording/recorder.hpp"
 #include "drivers/replay/csv_trace.hpp"
 #include "tests/support/gunzip.hpp"
 
@@ -116,7 +116,7 @@ TEST(Compressor, RecorderCompressesRotatedFilesAndRetentionCountsThem) {
   settings.rotate_size_mib = 0.05;  // ~130 rows of ~400 bytes
   settings.rotate_interval_s = 0.0;
   settings.keep_files = 4;
-  settings.compress = "gzip";
+  settings.compress = config::Compression::gzip;
   Recorder recorder(settings, "bench", *ring);
   recorder.start();
   record_rows(recorder, *ring, 2000, 0.0);
@@ -145,7 +145,7 @@ TEST(Compressor, PlainFilesOfAnEarlierRunAreCompressedAtStart) {
   config::RecordingSettings settings;
   settings.directory = dir.path();
   settings.keep_files = 0;
-  settings.compress = "gzip";
+  settings.compress = config::Compression::gzip;
   Recorder recorder(settings, "bench", *ring);
   recorder.start();
   recorder.wait_compressed();

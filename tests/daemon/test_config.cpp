@@ -5,6 +5,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <tuple>
 
 #include "daemon/config/binder.hpp"
 #include "daemon/config/daemon_config.hpp"
@@ -26,7 +27,7 @@ std::string error_of(const std::string& yaml) {
 TEST(Config, ShippedFilesLoad) {
   for (const char* name : {"paper.yaml", "sim.yaml"}) {
     const auto cfg = load_config_file(std::string(SCP_SOURCE_DIR) + "/config/" + name);
-    EXPECT_EQ(cfg.driver.type, "sim") << name;
+    EXPECT_EQ(cfg.driver.type, DriverType::sim) << name;
   }
   const auto paper = load_config_file(std::string(SCP_SOURCE_DIR) + "/config/paper.yaml");
   EXPECT_EQ(paper.estimator.beta, 3.0);
@@ -38,7 +39,82 @@ TEST(Config, ShippedFilesLoad) {
 TEST(Config, EmptyDocumentGivesDefaults) {
   const auto cfg = load_config_text("", "empty.yaml");
   EXPECT_EQ(cfg.loop.period_s, 0.001);
-  EXPECT_EQ(cfg.driver.type, "sim");
+  EXPECT_EQ(cfg.driver.type, DriverType::sim);
+}
+
+// The loop's tests start from the structs' defaults completed by derive_settings, not from the
+// loader (they link neither YAML nor a driver): the defaults are written in the structs and in the
+// declarations, and must agree on everything the loop and the simulated actuator read.
+TEST(Config, StructDefaultsAreTheDeclaredOnes) {
+  const DaemonConfig loaded = load_config_text("{}", "empty.yaml");
+  DaemonConfig built;
+  derive_settings(built);
+#define SCP_SAME(field) EXPECT_EQ(loaded.field, built.field) << #field
+  SCP_SAME(loop.period_s);
+  SCP_SAME(actuator.name);
+  SCP_SAME(actuator.ambient_c);
+  SCP_SAME(actuator.mass_kg);
+  SCP_SAME(actuator.resistance_ohm);
+  SCP_SAME(driver.type);
+  SCP_SAME(driver.velocity.method);
+  SCP_SAME(driver.velocity.bandwidth_hz);
+  SCP_SAME(driver.velocity.damping);
+  const auto& plant = built.driver.sim.plant;
+  for (const auto& [name, value, declared] :
+       {std::tuple{"m", plant.m, loaded.driver.sim.plant.m},
+        std::tuple{"R", plant.R, loaded.driver.sim.plant.R},
+        std::tuple{"Cth", plant.Cth, loaded.driver.sim.plant.Cth},
+        std::tuple{"lambda", plant.lambda, loaded.driver.sim.plant.lambda},
+        std::tuple{"b", plant.b, loaded.driver.sim.plant.b},
+        std::tuple{"k", plant.k, loaded.driver.sim.plant.k},
+        std::tuple{"alpha1", plant.alpha1, loaded.driver.sim.plant.alpha1},
+        std::tuple{"alpha2", plant.alpha2, loaded.driver.sim.plant.alpha2}}) {
+    EXPECT_EQ(declared, value) << "driver.sim.plant." << name;
+  }
+  SCP_SAME(driver.sim.ambient_c);
+  SCP_SAME(driver.sim.substeps);
+  SCP_SAME(driver.sim.noise_x);
+  SCP_SAME(driver.sim.noise_xdot);
+  SCP_SAME(driver.sim.noise_temperature);
+  SCP_SAME(driver.sim.noise_voltage);
+  SCP_SAME(driver.sim.seed);
+  SCP_SAME(driver.sim.measure_xdot);
+  SCP_SAME(driver.sim.fault);
+  SCP_SAME(estimator.beta);
+  SCP_SAME(estimator.forgetting);
+  SCP_SAME(estimator.forgetting_mechanical);
+  SCP_SAME(estimator.p0);
+  SCP_SAME(estimator.p_max);
+  SCP_SAME(estimator.theta0);
+  SCP_SAME(estimator.scale);
+  SCP_SAME(estimator.known);
+  SCP_SAME(estimator.voltage_hold);
+  SCP_SAME(estimator.max_gap_periods);
+  SCP_SAME(estimator.nominal_period);
+  SCP_SAME(estimator.x_abs_max);
+  SCP_SAME(estimator.xdot_abs_max);
+  SCP_SAME(estimator.tbar_min);
+  SCP_SAME(estimator.tbar_max);
+  SCP_SAME(estimator.voltage_max);
+  SCP_SAME(estimator.converged_rel_sigma);
+  SCP_SAME(excitation.enabled);
+  SCP_SAME(excitation.profile);
+  SCP_SAME(excitation.settings.v_max);
+  SCP_SAME(excitation.settings.offset);
+  SCP_SAME(excitation.settings.sines.size());
+  SCP_SAME(excitation.settings.steps.size());
+  SCP_SAME(excitation.settings.prbs.amplitude);
+  SCP_SAME(safety.voltage_max_v);
+  SCP_SAME(safety.temperature_max_c);
+  SCP_SAME(safety.temperature_min_c);
+  SCP_SAME(safety.position_abs_max_m);
+  SCP_SAME(safety.stale_timeout_s);
+  SCP_SAME(safety.recover_after_s);
+  SCP_SAME(safety.stuck_timeout_s);
+  SCP_SAME(refine.enabled);
+  SCP_SAME(refine.window_s);
+  SCP_SAME(refine.estimate_link_timing);
+#undef SCP_SAME
 }
 
 TEST(Config, UnknownKeyNamesKeyLineAndAlternatives) {
@@ -69,6 +145,28 @@ TEST(Config, WrongTypesAndBadYamlAreErrors) {
   EXPECT_NE(error_of("excitation:\n  sines:\n    - {amplitude_v: 1, frequency_hz: 0}\n")
                 .find("excitation.sines[0].frequency_hz"),
             std::string::npos);
+}
+
+// Choices are read into enumerations: a name outside the table is refused with the key, the line
+// and every allowed name; every allowed name reads as its own value.
+TEST(Config, ChoicesAreEnumerationsThatNameTheAllowedValues) {
+  const std::string e = error_of("recording:\n  compress: zstd\n");
+  EXPECT_NE(e.find("test.yaml:2"), std::string::npos) << e;
+  EXPECT_NE(e.find("recording.compress"), std::string::npos) << e;
+  EXPECT_NE(e.find("'zstd' is not allowed; use one of none|gzip"), std::string::npos) << e;
+  for (const auto& [value, name] : kVelocityMethods) {
+    const auto cfg =
+        load_config_text("driver: {velocity: {method: " + std::string(name) + "}}", "choice.yaml");
+    EXPECT_EQ(cfg.driver.velocity.method, value) << name;
+  }
+  for (const auto& [value, name] : kLinkTimings) {
+    const auto cfg =
+        load_config_text("refine: {link_timing: " + std::string(name) + "}", "choice.yaml");
+    EXPECT_EQ(cfg.refine.link_timing, value) << name;
+  }
+  for (const auto& [value, name] : kDriverTypes) {
+    EXPECT_STREQ(to_string(value), name);
+  }
 }
 
 TEST(Config, CrossKeyChecks) {

@@ -1,4 +1,4 @@
-// The journal's priority prefixes (daemon/log/journal_log.hpp).
+// The journal's priority prefixes (daemon/outputs/log/journal_log.hpp).
 
 #include <fcntl.h>
 #include <gtest/gtest.h>
@@ -7,7 +7,7 @@
 
 #include <string>
 
-#include "daemon/log/journal_log.hpp"
+#include "daemon/outputs/log/journal_log.hpp"
 
 namespace scp::daemon::log {
 namespace {

@@ -7,8 +7,8 @@
 #include <string>
 
 #include "daemon/config/daemon_config.hpp"
-#include "daemon/loop.hpp"
-#include "daemon/rt/alloc_counter.hpp"
+#include "daemon/core/loop.hpp"
+#include "daemon/core/rt/alloc_counter.hpp"
 #include "drivers/sim/sim_driver.hpp"
 #include "fake_driver.hpp"
 
@@ -17,9 +17,11 @@ namespace {
 
 class LoopTest : public ::testing::Test {
  protected:
-  LoopTest() : config_(config::load_config_text("{}", "defaults")) {}
+  // What an empty configuration file gives (test_config.cpp checks that it is), without linking
+  // the YAML loader and the drivers it validates.
+  LoopTest() { config::derive_settings(config_); }
 
-  Loop& make_loop(drivers::Driver& driver, refine::HandOffRing* handoff = nullptr) {
+  Loop& make_loop(drivers::Driver& driver, HandOffRing* handoff = nullptr) {
     loop_ =
         std::make_unique<Loop>(config_, driver, *published_, *commands_, nullptr, false, handoff);
     return *loop_;
@@ -223,11 +225,11 @@ TEST_F(LoopTest, CyclesAllocateNothingAfterStartUp) {
 TEST_F(LoopTest, HandingSamplesOffAllocatesNothing) {
   drivers::sim::SimDriver driver(config_.driver.sim);
   driver.open();
-  auto handoff = std::make_unique<refine::HandOffRing>();
+  auto handoff = std::make_unique<HandOffRing>();
   make_loop(driver, handoff.get());
   step();
   // All but 1000 slots taken, so that both the successful and the failing push are counted.
-  for (std::size_t i = 0; i < refine::kHandOffCapacity - 1000; ++i) handoff->try_push({});
+  for (std::size_t i = 0; i < kHandOffCapacity - 1000; ++i) handoff->try_push({});
   rt::alloc::arm();
   const rt::alloc::ScopedAllocationCount count;
   for (int i = 0; i < 3000; ++i) step();
@@ -294,13 +296,13 @@ TEST_F(LoopTest, RecordingFollowsTheRingPointer) {
 TEST_F(LoopTest, HandsOffEverySampleFedToTheEstimatorWithTBarAndVoltage) {
   testing::FakeDriver driver;
   driver.next = {0.0, 1e-3, 0.0, 40.0, 1.5};
-  auto handoff = std::make_unique<refine::HandOffRing>();
+  auto handoff = std::make_unique<HandOffRing>();
   make_loop(driver, handoff.get());
   k_ = 1000;
   for (int i = 0; i < 5; ++i) step();
   // ẋ is measured here (finite), so every fresh sample is fed as it is.
   EXPECT_EQ(handoff->size_approx(), 5U);
-  refine::HandOff h;
+  HandOff h;
   ASSERT_TRUE(handoff->try_pop(h));
   EXPECT_DOUBLE_EQ(h.sample.t, 1.0);
   EXPECT_DOUBLE_EQ(h.sample.x, 1e-3);
@@ -312,13 +314,13 @@ TEST_F(LoopTest, HandsOffEverySampleFedToTheEstimatorWithTBarAndVoltage) {
 
 TEST_F(LoopTest, AFullHandOffRingCountsDropsAndTheNextSampleStartsANewSegment) {
   testing::FakeDriver driver;
-  auto handoff = std::make_unique<refine::HandOffRing>();
+  auto handoff = std::make_unique<HandOffRing>();
   make_loop(driver, handoff.get());
   k_ = 1000;
-  for (std::size_t i = 0; i < refine::kHandOffCapacity + 3; ++i) step();
+  for (std::size_t i = 0; i < kHandOffCapacity + 3; ++i) step();
   EXPECT_EQ(loop_->dropped_handoff_samples(), 3U);
   EXPECT_EQ(state().handoff_dropped, 3U);
-  refine::HandOff h;
+  HandOff h;
   ASSERT_TRUE(handoff->try_pop(h));
   const std::uint64_t first = h.segment;
   while (handoff->try_pop(h)) EXPECT_EQ(h.segment, first);
@@ -329,10 +331,10 @@ TEST_F(LoopTest, AFullHandOffRingCountsDropsAndTheNextSampleStartsANewSegment) {
 
 TEST_F(LoopTest, AResetAndAFaultEachStartANewSegment) {
   testing::FakeDriver driver;
-  auto handoff = std::make_unique<refine::HandOffRing>();
+  auto handoff = std::make_unique<HandOffRing>();
   make_loop(driver, handoff.get());
   k_ = 1000;
-  refine::HandOff h;
+  HandOff h;
   step();
   ASSERT_TRUE(handoff->try_pop(h));
   const std::uint64_t before_reset = h.segment;

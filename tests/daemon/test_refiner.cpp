@@ -9,9 +9,9 @@
 #include <limits>
 #include <vector>
 
+#include "daemon/analysis/refine/refiner.hpp"
+#include "daemon/analysis/refine/sample_window.hpp"
 #include "daemon/config/daemon_config.hpp"
-#include "daemon/refine/refiner.hpp"
-#include "daemon/refine/sample_window.hpp"
 
 namespace scp::daemon::refine {
 namespace {

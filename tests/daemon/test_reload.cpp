@@ -3,8 +3,8 @@
 #include <cstdio>
 #include <fstream>
 
-#include "daemon/reload.hpp"
-#include "daemon/rt/seqlock.hpp"
+#include "daemon/core/rt/seqlock.hpp"
+#include "daemon/service/reload.hpp"
 
 namespace scp::daemon {
 namespace {

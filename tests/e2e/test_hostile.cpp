@@ -14,7 +14,7 @@
 #include <cstring>
 #include <vector>
 
-#include "daemon/state/checkpoint.hpp"
+#include "daemon/service/state/checkpoint.hpp"
 #include "tests/e2e/e2e_util.hpp"
 
 namespace scp::test {

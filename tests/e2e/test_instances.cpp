@@ -5,7 +5,7 @@
 
 #include <filesystem>
 
-#include "daemon/instance.hpp"
+#include "daemon/service/instance.hpp"
 #include "tests/e2e/e2e_util.hpp"
 
 namespace scp::test {
@@ -97,16 +97,16 @@ TEST(Instances, WarmStartFromAnotherActuatorsCheckpointIsRefused) {
 TEST(Instances, InstanceNameDecidesSocketStateAndName) {
   config::DaemonConfig cfg;
   EXPECT_TRUE(daemon::apply_instance(cfg, "bench-a").empty());
-  EXPECT_EQ(cfg.socket.path, "/run/scp-estimator/bench-a.sock");
+  EXPECT_EQ(cfg.socket.socket_path, "/run/scp-estimator/bench-a.sock");
   EXPECT_EQ(cfg.state.directory, "/var/lib/scp-estimator/bench-a");
   EXPECT_EQ(cfg.actuator.name, "bench-a");
   // A name set in the file stays; socket and state set elsewhere are overridden, with a warning.
   config::DaemonConfig named;
   named.actuator.name = "left-arm";
-  named.socket.path = "/tmp/x.sock";
+  named.socket.socket_path = "/tmp/x.sock";
   const auto warnings = daemon::apply_instance(named, "bench-a");
   EXPECT_EQ(named.actuator.name, "left-arm");
-  EXPECT_EQ(named.socket.path, "/run/scp-estimator/bench-a.sock");
+  EXPECT_EQ(named.socket.socket_path, "/run/scp-estimator/bench-a.sock");
   ASSERT_EQ(warnings.size(), 1u);
   EXPECT_TRUE(contains(warnings[0], "/tmp/x.sock")) << warnings[0];
   EXPECT_FALSE(daemon::instance_name_problem("../etc").empty());

@@ -1,11 +1,11 @@
-// Unit test of the stuck-sensor check (safety.stuck_timeout_s), daemon/safety.hpp.
+// Unit test of the stuck-sensor check (safety.stuck_timeout_s), daemon/core/safety.hpp.
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <string>
 
-#include "daemon/safety.hpp"
+#include "daemon/core/safety.hpp"
 
 namespace scp::daemon {
 namespace {

@@ -169,7 +169,7 @@ namespace {
 TEST(ModbusKeys, ExampleConfigsLoadAndFitTheirPeriod) {
   for (const char* name : {"/config/modbus-tcp.yaml", "/config/modbus-rtu.yaml"}) {
     const DaemonConfig cfg = load_config_file(std::string(SCP_SOURCE_DIR) + name);
-    EXPECT_EQ(cfg.driver.type, "modbus") << name;
+    EXPECT_EQ(cfg.driver.type, DriverType::modbus) << name;
     EXPECT_TRUE(cfg.driver.modbus.voltage.present) << name;
     EXPECT_NO_THROW(drivers::modbus::check_timing(cfg.driver.modbus, cfg.loop.period_s)) << name;
   }

@@ -1,10 +1,10 @@
 // The RTU wire model the driver stamps with (drivers/modbus/wire_time.hpp) and the line
-// scp-simdaq --wire emulates (drivers/simdaq/emulated_wire.hpp), checked against the Modbus
+// scp-simdaq --wire emulates (tools/simdaq/emulated_wire.hpp), checked against the Modbus
 // serial line specification's arithmetic done by hand.
 #include <gtest/gtest.h>
 
 #include "drivers/modbus/wire_time.hpp"
-#include "drivers/simdaq/emulated_wire.hpp"
+#include "tools/simdaq/emulated_wire.hpp"
 
 namespace scp::drivers::modbus {
 namespace {

@@ -6,7 +6,7 @@
 #include <thread>
 #include <vector>
 
-#include "daemon/rt/alloc_counter.hpp"
+#include "daemon/core/rt/alloc_counter.hpp"
 
 namespace scp::rt::alloc {
 namespace {

@@ -8,8 +8,8 @@
 #include <thread>
 #include <vector>
 
-#include "daemon/rt/alloc_counter.hpp"
-#include "daemon/rt/latency_histogram.hpp"
+#include "daemon/core/rt/alloc_counter.hpp"
+#include "daemon/core/rt/latency_histogram.hpp"
 
 namespace scp::rt {
 namespace {

@@ -5,8 +5,8 @@
 #include <random>
 #include <vector>
 
-#include "daemon/rt/alloc_counter.hpp"
-#include "daemon/rt/loop_stats.hpp"
+#include "daemon/core/rt/alloc_counter.hpp"
+#include "daemon/core/rt/loop_stats.hpp"
 
 namespace scp::rt {
 namespace {

@@ -6,8 +6,9 @@
 #include <ctime>
 #include <thread>
 
-#include "daemon/rt/alloc_counter.hpp"
-#include "daemon/rt/periodic_timer.hpp"
+#include "common/clock.hpp"
+#include "daemon/core/rt/alloc_counter.hpp"
+#include "daemon/core/rt/periodic_timer.hpp"
 
 namespace scp::rt {
 namespace {
@@ -28,7 +29,7 @@ TEST(PeriodicTimer, RejectsNonPositivePeriod) {
 TEST(PeriodicTimer, WakesOnTheAbsoluteGrid) {
   constexpr std::int64_t kPeriod = 1'000'000;  // 1 ms
   PeriodicTimer timer{std::chrono::nanoseconds(kPeriod)};
-  const std::int64_t t0 = monotonic_now_ns();
+  const std::int64_t t0 = clock::monotonic_ns();
   timer.start_at(t0);
   std::uint64_t missed_total = 0;
   WakeResult last{};
@@ -42,13 +43,13 @@ TEST(PeriodicTimer, WakesOnTheAbsoluteGrid) {
   // Skipped periods are counted in the index, so index = calls − 1 + skipped.
   EXPECT_EQ(last.cycle, 29 + missed_total);
   // It really slept: 29 periods after t0 at least.
-  EXPECT_GE(monotonic_now_ns() - t0, 29 * kPeriod);
+  EXPECT_GE(clock::monotonic_ns() - t0, 29 * kPeriod);
 }
 
 TEST(PeriodicTimer, SkipsWholeMissedPeriodsWithoutBursting) {
   constexpr std::int64_t kPeriod = 10'000'000;  // 10 ms
   PeriodicTimer timer{std::chrono::nanoseconds(kPeriod)};
-  const std::int64_t t0 = monotonic_now_ns() - kPeriod * 21 / 2;  // 10.5 periods in the past
+  const std::int64_t t0 = clock::monotonic_ns() - kPeriod * 21 / 2;  // 10.5 periods in the past
   timer.start_at(t0);
   const WakeResult first = timer.wait_next();
   EXPECT_EQ(first.cycle, 0U);
@@ -68,7 +69,7 @@ TEST(PeriodicTimer, SkipsWholeMissedPeriodsWithoutBursting) {
   EXPECT_EQ(third.cycle, 11U);
   EXPECT_EQ(third.missed, 0U);
   EXPECT_FALSE(third.overrun);
-  EXPECT_GE(monotonic_now_ns(), t0 + 11 * kPeriod);
+  EXPECT_GE(clock::monotonic_ns(), t0 + 11 * kPeriod);
 }
 
 TEST(PeriodicTimer, MeasuresExecutionTimeAndOverrun) {
@@ -114,7 +115,7 @@ TEST(PeriodicTimer, SignalDuringSleepDoesNotWakeEarly) {
     pthread_kill(self, SIGUSR1);
   });
   const WakeResult w = timer.wait_next();
-  const std::int64_t woke = monotonic_now_ns();
+  const std::int64_t woke = clock::monotonic_ns();
   interrupter.join();
   sigaction(SIGUSR1, &old, nullptr);
 #ifdef __SANITIZE_THREAD__

@@ -10,7 +10,7 @@
 #include <string>
 #include <thread>
 
-#include "daemon/rt/rt_setup.hpp"
+#include "daemon/core/rt/rt_setup.hpp"
 
 namespace scp::rt {
 namespace {

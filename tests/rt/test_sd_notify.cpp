@@ -8,8 +8,8 @@
 #include <cstring>
 #include <string>
 
-#include "daemon/rt/alloc_counter.hpp"
-#include "daemon/rt/sd_notify.hpp"
+#include "daemon/core/rt/alloc_counter.hpp"
+#include "daemon/core/rt/sd_notify.hpp"
 
 namespace scp::rt {
 namespace {

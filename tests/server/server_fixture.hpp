@@ -21,9 +21,9 @@
 #include <thread>
 #include <vector>
 
-#include "daemon/published_state.hpp"
-#include "daemon/rt/seqlock.hpp"
-#include "daemon/server/api_server.hpp"
+#include "daemon/core/published_state.hpp"
+#include "daemon/core/rt/seqlock.hpp"
+#include "daemon/outputs/server/api_server.hpp"
 
 namespace scp::daemon::server::test {
 

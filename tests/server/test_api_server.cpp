@@ -6,7 +6,7 @@
 
 #include <fstream>
 
-#include "daemon/server/api_server.hpp"
+#include "daemon/outputs/server/api_server.hpp"
 #include "tests/server/server_fixture.hpp"
 
 namespace scp::daemon::server {

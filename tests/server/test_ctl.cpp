@@ -6,7 +6,7 @@
 #include <cstdio>
 #include <sstream>
 
-#include "daemon/server/api_server.hpp"
+#include "daemon/outputs/server/api_server.hpp"
 #include "tests/server/server_fixture.hpp"
 
 #ifndef SCP_CTL_PATH

@@ -4,7 +4,7 @@
 
 #include <stdexcept>
 
-#include "daemon/server/peer_auth.hpp"
+#include "daemon/outputs/server/peer_auth.hpp"
 
 namespace scp::daemon::server {
 namespace {

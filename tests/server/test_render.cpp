@@ -5,7 +5,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 
-#include "daemon/server/render.hpp"
+#include "daemon/outputs/server/render.hpp"
 #include "tests/server/server_fixture.hpp"
 
 namespace scp::daemon::server {
@@ -288,10 +288,10 @@ TEST(Render, StatusLatenessFromTheFineHistogram) {
 }
 
 TEST(Render, StateNames) {
-  EXPECT_STREQ(state_name(RunState::starting), "starting");
-  EXPECT_STREQ(state_name(RunState::running), "running");
-  EXPECT_STREQ(state_name(RunState::fault), "fault");
-  EXPECT_STREQ(state_name(RunState::stopping), "stopping");
+  EXPECT_STREQ(to_string(RunState::starting), "starting");
+  EXPECT_STREQ(to_string(RunState::running), "running");
+  EXPECT_STREQ(to_string(RunState::fault), "fault");
+  EXPECT_STREQ(to_string(RunState::stopping), "stopping");
 }
 
 }  // namespace

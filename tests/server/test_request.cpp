@@ -2,7 +2,7 @@
 
 #include <string>
 
-#include "daemon/server/request.hpp"
+#include "daemon/outputs/server/request.hpp"
 
 namespace scp::daemon::server {
 namespace {

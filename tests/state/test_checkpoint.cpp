@@ -11,7 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "daemon/state/checkpoint.hpp"
+#include "daemon/service/state/checkpoint.hpp"
 
 namespace scp::daemon::state {
 namespace {

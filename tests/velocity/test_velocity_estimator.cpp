@@ -8,7 +8,7 @@
 #include <random>
 #include <stdexcept>
 
-#include "daemon/velocity/velocity_estimator.hpp"
+#include "daemon/core/velocity/velocity_estimator.hpp"
 
 namespace scp::daemon::velocity {
 namespace {

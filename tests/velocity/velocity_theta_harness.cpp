@@ -1,4 +1,4 @@
-// Measures how ẋ estimated from x (daemon/velocity) changes θ̂, against the true ẋ: the paper's
+// Measures how ẋ estimated from x (daemon/core/velocity) changes θ̂, against the true ẋ: the paper's
 // experiment (simulated plant, paper excitation, 1 kHz) run through the estimator. Not a test:
 // a program whose output is quoted in docs/velocity.md.
 //
@@ -9,7 +9,7 @@
 #include <cstdio>
 #include <cstdlib>
 
-#include "daemon/velocity/velocity_estimator.hpp"
+#include "daemon/core/velocity/velocity_estimator.hpp"
 #include "drivers/sim/sim_driver.hpp"
 #include "estimator/estimator.hpp"
 #include "excitation/excitation.hpp"

@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "daemon/safety.hpp"
+#include "daemon/core/safety.hpp"
 #include "drivers/sim/sim_driver.hpp"
 #include "excitation/excitation.hpp"
 
@@ -21,8 +21,8 @@ void require(bool ok, const std::string& message) {
 }  // namespace
 
 Experiment simulate(const config::DaemonConfig& config, double duration_s, double window_s) {
-  require(config.driver.type == "sim",
-          config.source + ": driver.type is " + config.driver.type +
+  require(config.driver.type == config::DriverType::sim,
+          config.source + ": driver.type is " + config::to_string(config.driver.type) +
               "; the bound needs the simulated plant's parameters (driver.type: sim)");
   require(!drivers::sim::has_drift(config.driver.sim.drift),
           config.source + ": driver.sim.drift is set; the bound is for a constant plant");

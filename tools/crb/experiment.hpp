@@ -29,7 +29,7 @@ struct Experiment {
 // Runs `config` (driver.type sim, no drift, no fault) for duration_s of loop time and keeps the
 // samples of the last window_s (all of them when window_s ≥ duration_s). Sample k is read at
 // t = k·period after the plant held the previous command over one period, exactly as
-// daemon/loop.cpp reads and writes; the command at t is clamp_voltage(excitation(t)).
+// daemon/core/loop.cpp reads and writes; the command at t is clamp_voltage(excitation(t)).
 // Throws std::invalid_argument naming the option or key at fault.
 Experiment simulate(const config::DaemonConfig& config, double duration_s, double window_s);
 

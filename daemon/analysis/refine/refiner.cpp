@@ -1,0 +1,240 @@
+#include "daemon/analysis/refine/refiner.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+
+namespace scp::daemon::refine {
+
+namespace {
+
+std::size_t window_capacity(double window_s, double period_s) {
+  return static_cast<std::size_t>(std::ceil(window_s / period_s)) + 1;
+}
+
+bool all_finite(const std::array<double, 6>& v) noexcept {
+  return std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
+}
+
+Vector6 to_vector(const std::array<double, 6>& v) noexcept {
+  Vector6 out;
+  for (int i = 0; i < 6; ++i) out[i] = v[static_cast<std::size_t>(i)];
+  return out;
+}
+
+template <class Vec>
+std::array<double, 6> to_array6(const Vec& v) noexcept {
+  std::array<double, 6> out{};
+  for (std::size_t i = 0; i < 6; ++i) out[i] = v[static_cast<Eigen::Index>(i)];
+  return out;
+}
+
+bool well_determined(const Vector6& theta, const Vector6& sigma,
+                     const std::array<bool, 6>& known) noexcept {
+  for (int i = 0; i < 6; ++i) {
+    if (known[static_cast<std::size_t>(i)]) continue;
+    if (!std::isfinite(sigma[i]) || !(sigma[i] < std::abs(theta[i]))) return false;
+  }
+  return true;
+}
+
+bool usable(const PaperEstimate& paper) noexcept {
+  return all_finite(paper.theta_hat) && std::any_of(paper.theta_hat.begin(), paper.theta_hat.end(),
+                                                    [](double x) { return x != 0.0; });
+}
+
+// −2/N × the Gaussian log-likelihood with each channel's variance estimated (up to a constant):
+// log σ̂x² + log σ̂T̄², comparable between two fits of one window.
+double profile_cost(const scp::refine::FitResult& r) noexcept {
+  constexpr double kTiny = 1e-300;
+  return std::log(r.residual_rms[0] * r.residual_rms[0] + kTiny) +
+         std::log(r.residual_rms[1] * r.residual_rms[1] + kTiny);
+}
+
+// Converged beats not converged; then the smaller profile cost.
+bool better(const scp::refine::FitResult& a, const scp::refine::FitResult& b) noexcept {
+  const bool fa = a.converged && a.theta.allFinite(), fb = b.converged && b.theta.allFinite();
+  if (fa != fb) return fa;
+  const double ca = profile_cost(a), cb = profile_cost(b);
+  return std::isfinite(ca) && (!std::isfinite(cb) || ca < cb);
+}
+
+}  // namespace
+
+Refiner::Refiner(const config::RefineSettings& settings,
+                 const estimator::EstimatorConfig& estimator, double period_s, FitFunction fit)
+    : settings_(settings),
+      theta0_(estimator.theta0),
+      known_(estimator.known),
+      max_gap_s_(settings.max_gap_s),
+      tolerance_s_(0.5 * period_s),
+      fit_(std::move(fit)),
+      window_(window_capacity(settings.window_s, period_s)) {
+  view_.interval_s = settings.interval_s;
+}
+
+void Refiner::accept(const HandOff& handoff) noexcept {
+  const scp::refine::WindowSample& s = handoff.sample;
+  if (!std::isfinite(s.t) || !std::isfinite(s.x) || !std::isfinite(s.tbar) ||
+      !std::isfinite(s.voltage)) {
+    started_ = false;  // a hole in the data: the next valid sample starts a new window
+    return;
+  }
+  bool restart = !started_ || handoff.segment != segment_;
+  if (!restart && !window_.empty()) {
+    const double step = s.t - window_.back().t;
+    // Not one run: time went backwards or stood still, or the gap is longer than the voltage
+    // during it can be trusted to have been held (refine.max_gap_s). The paper law restarts its
+    // filters after estimator.max_gap_periods already; the output-error model needs no such
+    // restart, and a window cut at every stall of a jittery link stays too short to fit.
+    restart = !(step > 0.0) || step > max_gap_s_;
+  }
+  if (restart) {
+    window_.clear();
+    fitted_in_window_ = false;
+    ++view_.windows;
+  }
+  started_ = true;
+  segment_ = handoff.segment;
+  window_.push(s);
+  // The window is window_s of loop time: with samples missing (overruns) fewer than its capacity.
+  while (window_.size() > 1 && s.t - window_.front().t > settings_.window_s + tolerance_s_) {
+    window_.drop_oldest();
+  }
+}
+
+std::size_t Refiner::drain(HandOffRing& ring) noexcept {
+  std::size_t n = 0;
+  HandOff handoff;
+  while (ring.try_pop(handoff)) {
+    accept(handoff);
+    ++n;
+  }
+  return n;
+}
+
+bool Refiner::window_ready() const noexcept {
+  return window_.size() >= 3 && window_.span_s() + tolerance_s_ >= settings_.min_window_s;
+}
+
+bool Refiner::due() const noexcept {
+  if (!window_ready()) return false;
+  if (!fitted_in_window_) return true;
+  return window_.back().t - last_fit_t_end_ + tolerance_s_ >= settings_.interval_s;
+}
+
+bool Refiner::has_unfitted_data() const noexcept {
+  return window_ready() && (!fitted_in_window_ || window_.back().t > last_fit_t_end_);
+}
+
+Seed Refiner::choose_seed(const PaperEstimate& paper, Vector6& start) const noexcept {
+  Seed seed = Seed::theta0;
+  start = theta0_;
+  if (have_converged_) {
+    seed = Seed::refined;
+    start = last_converged_;
+  } else if (usable(paper)) {
+    seed = Seed::paper;
+    start = to_vector(paper.theta_hat);
+  }
+  // Known parameters are held where the configuration puts them, whatever the seed says.
+  for (int i = 0; i < 6; ++i) {
+    if (known_[static_cast<std::size_t>(i)]) start[i] = theta0_[i];
+  }
+  return seed;
+}
+
+const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::int64_t wall_ns) {
+  Vector6 start;
+  Seed seed = choose_seed(paper, start);
+  scp::refine::FitSettings fit_settings;
+  fit_settings.max_iterations = settings_.max_iterations;
+  fit_settings.known = known_;
+  fit_settings.hac_lags = settings_.hac_lags;
+  fit_settings.covariance_batches = settings_.covariance_batches;
+  fit_settings.cancel = cancel_;
+  fit_settings.max_input_delay_s =
+      settings_.estimate_link_timing ? settings_.max_input_delay_s : 0.0;
+  fit_settings.sample_timing_jitter = settings_.estimate_link_timing;
+  fit_settings.outlier_threshold =
+      settings_.estimate_link_timing ? scp::refine::kOutlierThreshold2d : 0.0;
+  fit_settings.landing_timing_jitter = settings_.estimate_link_timing;
+
+  const auto begin = std::chrono::steady_clock::now();
+  scp::refine::FitResult r = fit_(window_.samples(), start, fit_settings);
+  // A second start when the previous window's fit led somewhere the data do not pin down: the
+  // output-error cost has far local minima along the poorly excited common scale of θ1..θ4, where
+  // a start from the paper law's estimate finds the right one. Both fit the same window; the
+  // larger Gaussian likelihood wins.
+  if (seed == Seed::refined && !well_determined(r.theta, r.sigma, known_) &&
+      (cancel_ == nullptr || !cancel_->load(std::memory_order_relaxed)) && usable(paper)) {
+    Vector6 other = to_vector(paper.theta_hat);
+    for (int i = 0; i < 6; ++i) {
+      if (known_[static_cast<std::size_t>(i)]) other[i] = theta0_[i];
+    }
+    scp::refine::FitResult r2 = fit_(window_.samples(), other, fit_settings);
+    if (better(r2, r)) {
+      r = r2;
+      seed = Seed::paper;
+    }
+  }
+  const double duration =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
+
+  fitted_in_window_ = true;
+  last_fit_t_end_ = window_.empty() ? now_t : window_.back().t;
+
+  RefinedView& v = view_;
+  v.valid = true;
+  ++v.fits;
+  v.fitted_at_t = now_t;
+  v.fitted_at_unix_ns = wall_ns;
+  v.duration_s = duration;
+  v.seed = seed;
+  v.theta_hat = to_array6(r.theta);
+  v.sigma = to_array6(r.sigma);
+  v.sigma_inflation = to_array6(r.sigma_inflation);
+  v.t_begin = r.t_begin;
+  v.t_end = r.t_end;
+  v.samples = r.samples;
+  v.residual_rms = {r.residual_rms[0], r.residual_rms[1]};
+  v.noise_sigma = {r.noise_sigma[0], r.noise_sigma[1]};
+  v.input_delay_estimated = r.input_delay_estimated;
+  v.input_delay_s = r.input_delay_s;
+  v.input_delay_sigma_s = r.input_delay_sigma_s;
+  v.input_delay_sigma_inflation = r.input_delay_sigma_inflation;
+  v.sample_timing_sigma_s = r.sample_timing_sigma_s;
+  v.outliers = r.outliers;
+  // A result with a non-finite θ̂ is no result, whatever the solver said.
+  v.converged = r.converged && all_finite(v.theta_hat);
+  v.iterations = r.iterations;
+  v.message.fill('\0');
+  std::strncpy(v.message.data(), r.message != nullptr ? r.message : "", v.message.size() - 1);
+
+  if (v.converged) {
+    ++v.converged_fits;
+    // A fit is a seed for the next window only if it determined every free θ to better than
+    // its own size. A converged fit of a short, noisy window can sit in a far local minimum with a
+    // σ that says so; seeding the next, longer fit from it keeps that minimum, where the paper
+    // law's seed leads to the right one.
+    if (well_determined(r.theta, r.sigma, known_)) {
+      have_converged_ = true;
+      last_converged_ = r.theta;
+    }
+    if (all_finite(paper.theta_hat) && all_finite(paper.sigma)) {
+      const scp::refine::BiasTest test =
+          scp::refine::test_against(r, to_vector(paper.theta_hat), to_vector(paper.sigma), known_);
+      v.bias_tested = true;
+      for (std::size_t b = 0; b < 2; ++b) {
+        const auto i = static_cast<Eigen::Index>(b);
+        v.bias_statistic[b] = test.statistic[i];
+        v.bias_threshold[b] = test.threshold[i];
+        v.paper_biased[b] = test.biased[b];
+      }
+    }
+  }
+  return view_;
+}
+
+}  // namespace scp::daemon::refine

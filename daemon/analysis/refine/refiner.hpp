@@ -1,0 +1,88 @@
+#pragma once
+// The daemon's side of the output-error refinement (refine/fit.hpp): keeps the window of samples
+// the loop handed off, decides when a fit is due, chooses where the solver starts, calls
+// refine::fit and tests the paper law against the result. Single-threaded: the service's worker
+// thread owns one (refine_worker.hpp); a batch run calls it inline between cycles, which makes it
+// deterministic there.
+//
+// A window is one contiguous run of samples, never more: the model is simulated through it from
+// one initial state, so a gap (a time step above refine.max_gap_s, a change of the
+// loop's hand-off segment: a dropped sample, an estimator reset, the loop leaving RUNNING) empties
+// it and the next fit waits until the new run spans refine.min_window_s.
+
+#include <atomic>
+#include <functional>
+#include <span>
+
+#include "daemon/analysis/refine/refined_view.hpp"
+#include "daemon/analysis/refine/sample_window.hpp"
+#include "daemon/config/daemon_config.hpp"
+#include "daemon/core/handoff.hpp"
+#include "refine/fit.hpp"
+
+namespace scp::daemon::refine {
+
+using scp::refine::Vector6;
+
+// The paper law's published estimate when a fit is made: a seed, and the estimate under test.
+struct PaperEstimate {
+  std::array<double, 6> theta_hat{};
+  std::array<double, 6> sigma{};
+};
+
+using FitFunction = std::function<scp::refine::FitResult(
+    std::span<const scp::refine::WindowSample>, const Vector6&, const scp::refine::FitSettings&)>;
+
+class Refiner {
+ public:
+  // `fit` is refine::fit except in tests. Allocates the window: window_s / period_s samples.
+  Refiner(const config::RefineSettings& settings, const estimator::EstimatorConfig& estimator,
+          double period_s, FitFunction fit = scp::refine::fit);
+
+  // One sample from the loop; a break in the data starts a new window first.
+  void accept(const HandOff& handoff) noexcept;
+  // Everything waiting in the ring; returns how many.
+  std::size_t drain(HandOffRing& ring) noexcept;
+
+  // The window spans min_window_s and interval_s of loop time passed since the last fit's data.
+  bool due() const noexcept;
+  // The window spans min_window_s and holds samples newer than the last fit (the end of a batch
+  // run fits once more then).
+  bool has_unfitted_data() const noexcept;
+
+  // Fits the window now. `now_t` is the loop time, `wall_ns` the UTC wall clock (ns since the
+  // epoch) put in the view.
+  const RefinedView& fit(const PaperEstimate& paper, double now_t, std::int64_t wall_ns);
+
+  // A flag the fit polls (refine::FitSettings::cancel): when it reads true a fit in progress
+  // returns within about a millisecond, not converged. The service's worker points it at its stop
+  // flag so that shutdown never waits on a fit; nullptr (the default) never cancels.
+  void set_cancel(const std::atomic<bool>* cancel) noexcept { cancel_ = cancel; }
+
+  const RefinedView& view() const noexcept { return view_; }
+  const SampleWindow& window() const noexcept { return window_; }
+  // Where the next fit would start, and from which source: the last converged fit whose σ is
+  // below |θ| for every free parameter, else the paper law's θ̂ when it has one, else theta0.
+  Seed choose_seed(const PaperEstimate& paper, Vector6& start) const noexcept;
+
+ private:
+  bool window_ready() const noexcept;
+
+  config::RefineSettings settings_;
+  Vector6 theta0_;
+  std::array<bool, 6> known_;
+  double max_gap_s_;
+  double tolerance_s_;  // half a period: loop times are sums of periods, never exact
+  FitFunction fit_;
+  const std::atomic<bool>* cancel_ = nullptr;
+  SampleWindow window_;
+  bool started_ = false;
+  std::uint64_t segment_ = 0;
+  bool fitted_in_window_ = false;
+  double last_fit_t_end_ = 0.0;
+  bool have_converged_ = false;
+  Vector6 last_converged_ = Vector6::Zero();
+  RefinedView view_{};
+};
+
+}  // namespace scp::daemon::refine

@@ -1,0 +1,273 @@
+#include "daemon/batch/batch_run.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <thread>
+
+#include "common/clock.hpp"
+#include "daemon/analysis/refine/refine_worker.hpp"
+#include "daemon/analysis/refine/refiner.hpp"
+#include "daemon/core/loop.hpp"
+#include "daemon/outputs/recording/recorder.hpp"
+#include "daemon/outputs/server/render.hpp"
+#include "daemon/service/driver_factory.hpp"
+#include "drivers/replay/replay_driver.hpp"
+
+namespace scp::daemon {
+
+namespace {
+
+// The configured driver, or the replayed files in its place. A recording made with this
+// configuration keeps its period, so that the estimator's gap threshold (max_gap_periods x
+// nominal_period) is the live run's; a file from elsewhere sets its own (its median step).
+std::unique_ptr<drivers::Driver> batch_driver(config::DaemonConfig& cfg,
+                                              const BatchOptions& options,
+                                              drivers::replay::ReplayDriver*& replay) {
+  if (options.replay_paths.empty()) {
+    if (cfg.driver.type == config::DriverType::modbus) {
+      // No wall-clock deadline offline: wait as long as a lock-step peer needs.
+      cfg.driver.modbus.response_timeout_s = cfg.driver.modbus.offline_response_timeout_s;
+      cfg.driver.modbus.enforce_period_budget = false;
+    }
+    return make_driver(cfg);
+  }
+  auto replay_driver = std::make_unique<drivers::replay::ReplayDriver>(options.replay_paths);
+  if (std::fabs(replay_driver->period() - cfg.loop.period_s) > 0.01 * cfg.loop.period_s) {
+    cfg.loop.period_s = replay_driver->period();
+    cfg.estimator.nominal_period = replay_driver->period();
+  }
+  replay = replay_driver.get();
+  return replay_driver;
+}
+
+// One batch run: the daemon's loop, cycle after cycle without sleeping, on loop time; the
+// refinement inline between cycles (the same fits every run); the recorder on its thread.
+class BatchRun {
+ public:
+  BatchRun(config::DaemonConfig cfg, const BatchOptions& options);
+  nlohmann::json run();
+
+ private:
+  void run_cycles();
+  void refine_now(double t);
+  nlohmann::json summary(double wall_s) const;
+
+  config::DaemonConfig cfg_;
+  const BatchOptions& options_;
+  drivers::replay::ReplayDriver* replay_ = nullptr;
+  std::unique_ptr<drivers::Driver> driver_;
+  // Heap-allocated: the seqlock and the rings are large, and this runs on the main thread's stack.
+  std::unique_ptr<rt::Seqlock<PublishedState>> published_ =
+      std::make_unique<rt::Seqlock<PublishedState>>();
+  std::unique_ptr<CommandRing> commands_ = std::make_unique<CommandRing>();
+  std::unique_ptr<RecordRing> record_ring_;
+  std::unique_ptr<RefinedRing> refined_ring_;
+  std::optional<Recorder> recorder_;
+  std::unique_ptr<HandOffRing> handoff_;
+  std::optional<refine::Refiner> refiner_;
+  std::optional<Loop> loop_;
+  double replay_start_ = 0.0;
+  std::uint64_t cycles_ = 0;
+};
+
+BatchRun::BatchRun(config::DaemonConfig cfg, const BatchOptions& options)
+    : cfg_(std::move(cfg)), options_(options) {
+  driver_ = batch_driver(cfg_, options_, replay_);
+  driver_->open();
+  if (!options_.record_path.empty()) {
+    record_ring_ = std::make_unique<RecordRing>();
+    refined_ring_ = std::make_unique<RefinedRing>();
+    recorder_.emplace(options_.record_path, *record_ring_, refined_ring_.get());
+  }
+  if (cfg_.refine.enabled) {
+    handoff_ = std::make_unique<HandOffRing>();
+    refiner_.emplace(cfg_.refine, cfg_.estimator, cfg_.loop.period_s);
+  }
+  loop_.emplace(cfg_, *driver_, *published_, *commands_, record_ring_.get(),
+                /*block_when_record_full=*/true, handoff_.get());
+}
+
+nlohmann::json BatchRun::run() {
+  const auto wall_start = std::chrono::steady_clock::now();
+  run_cycles();
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  if (recorder_) recorder_->finish();
+  driver_->close();
+  return summary(wall_s);
+}
+
+void BatchRun::run_cycles() {
+  const double period = cfg_.loop.period_s;
+  // A replay stops at the end of its file unless told to stop earlier.
+  const double duration = options_.duration_s.value_or(
+      replay_ == nullptr ? kDefaultBatchDuration : std::numeric_limits<double>::infinity());
+  const std::uint64_t last = std::isfinite(duration)
+                                 ? static_cast<std::uint64_t>(std::llround(duration / period))
+                                 : std::numeric_limits<std::uint64_t>::max() - 1;
+  if (replay_ != nullptr) replay_->next_time(replay_start_);
+  double t_last = 0.0;
+  for (cycles_ = 0; cycles_ <= last; ++cycles_) {
+    drivers::CycleTime now{static_cast<double>(cycles_) * period, period};
+    // A replay's cycles run at the recorded times, gaps included, as the live loop's did: the
+    // staleness, stuck-sensor and excitation clocks then see what they saw live.
+    if (replay_ != nullptr && replay_->next_time(now.t) &&
+        now.t - replay_start_ > duration + 0.5 * period) {
+      break;
+    }
+    if (loop_->cycle(now) == CycleResult::end_of_data) break;
+    t_last = now.t;
+    if (refiner_) {
+      refiner_->drain(*handoff_);
+      if (refiner_->due()) refine_now(now.t);
+    }
+  }
+  loop_->shutdown();
+  if (refiner_) {
+    refiner_->drain(*handoff_);
+    if (refiner_->has_unfitted_data()) refine_now(t_last);  // the final window
+  }
+}
+
+void BatchRun::refine_now(double t) {
+  const refine::RefinedView& view =
+      refiner_->fit(refine::paper_estimate(published_->load()), t, clock::unix_ns());
+  if (refined_ring_) {
+    while (!refined_ring_->try_push(view)) std::this_thread::yield();  // the recorder catches up
+  }
+}
+
+// ESTIMATE as a client would read it at the end (docs/protocol.md), and the run's own members.
+nlohmann::json BatchRun::summary(double wall_s) const {
+  const PublishedState last = published_->load();
+  const refine::RefinedView* refined = refiner_ ? &refiner_->view() : nullptr;
+  nlohmann::json out = server::estimate_json(last.estimate, refined, last.uptime_s);
+  out.erase("class");
+  if (refined != nullptr) {
+    out["refine"] = {{"fits", refined->fits},
+                     {"converged_fits", refined->converged_fits},
+                     {"windows", refined->windows},
+                     {"handoff_dropped", last.handoff_dropped}};
+  }
+  out["state"] = to_string(last.state);
+  if (last.fault_reason[0] != '\0') out["fault_reason"] = last.fault_reason.data();
+  out["driver"] = std::string(driver_->name());
+  out["cycles"] = cycles_;
+  out["wall_time_s"] = wall_s;
+  out["realtime_factor"] = wall_s > 0 ? (last.estimate.t - replay_start_) / wall_s : 0.0;
+  if (replay_ != nullptr) {
+    const drivers::replay::Trace& trace = replay_->trace();
+    out["replay"] = {{"files", trace.files.size()},
+                     {"rows", trace.rows.size()},
+                     {"period_s", trace.period},
+                     {"gaps", trace.gaps},
+                     {"max_step_s", trace.max_step}};
+  }
+  if (recorder_) out["recorded_rows"] = recorder_->rows_written();
+  return out;
+}
+
+constexpr const char* kThetaNames[6] = {"theta1 b/m",  "theta2 a1/m",  "theta3 k/m",
+                                        "theta4 a2/m", "theta5 l/Cth", "theta6 1/(R Cth)"};
+
+// A number of the summary in `format`, "-" where it has none (a zero true θ has no relative
+// error, a diverged estimate no finite value: both are null).
+std::string number_or_dash(const nlohmann::json& v, const char* format) {
+  if (!v.is_number()) return "-";
+  char text[64];
+  std::snprintf(text, sizeof text, format, v.get<double>());
+  return text;
+}
+
+std::string refined_heading(const nlohmann::json& s) {
+  const nlohmann::json& r = s["refined"];
+  char line[240];
+  std::snprintf(line, sizeof line,
+                "refined: window [%.3f, %.3f] s, %s samples, %s after %s iterations (%s), "
+                "fit %s of %s\n",
+                r["window"].value("t_begin", 0.0), r["window"].value("t_end", 0.0),
+                r["window"]["samples"].dump().c_str(),
+                r.value("converged", false) ? "converged" : "NOT converged",
+                r["iterations"].dump().c_str(), r.value("message", std::string()).c_str(),
+                r["fits"].dump().c_str(), s["refine"]["fits"].dump().c_str());
+  return line;
+}
+
+// The paper law's θ̂ beside the refined one, and which the daemon recommends.
+std::string refined_table(const nlohmann::json& s) {
+  const nlohmann::json& r = s["refined"];
+  const bool truth = r.contains("rel_error");
+  std::string out = refined_heading(s);
+  char line[240];
+  if (truth) {
+    std::snprintf(line, sizeof line, "%-18s %16s %12s %12s %12s\n", "parameter", "refined",
+                  "rel.error", "sigma", "paper rel.");
+  } else {
+    std::snprintf(line, sizeof line, "%-18s %16s %12s %16s\n", "parameter", "refined", "sigma",
+                  "paper");
+  }
+  out += line;
+  for (std::size_t i = 0; i < 6; ++i) {
+    const std::string hat = number_or_dash(r["theta_hat"][i], "%16.9g");
+    const std::string sigma = number_or_dash(r["sigma"][i], "%12.3e");
+    if (truth) {
+      std::snprintf(line, sizeof line, "%-18s %16s %12s %12s %12s\n", kThetaNames[i], hat.c_str(),
+                    number_or_dash(r["rel_error"][i], "%12.3e").c_str(), sigma.c_str(),
+                    number_or_dash(s["rel_error"][i], "%12.3e").c_str());
+    } else {
+      std::snprintf(line, sizeof line, "%-18s %16s %12s %16s\n", kThetaNames[i], hat.c_str(),
+                    sigma.c_str(), number_or_dash(s["theta_hat"][i], "%16.9g").c_str());
+    }
+    out += line;
+  }
+  std::snprintf(line, sizeof line, "paper law biased: mechanical %s, thermal %s; best: %s\n",
+                s["paper_biased"].value("mechanical", false) ? "yes" : "no",
+                s["paper_biased"].value("thermal", false) ? "yes" : "no",
+                s["best"].get<std::string>().c_str());
+  out += line;
+  return out;
+}
+
+}  // namespace
+
+nlohmann::json run_batch(config::DaemonConfig cfg, const BatchOptions& options) {
+  return BatchRun(std::move(cfg), options).run();
+}
+
+std::string summary_table(const nlohmann::json& s) {
+  std::string out;
+  char line[200];
+  const bool truth = s.contains("theta_true");
+  std::snprintf(line, sizeof line, "t = %.3f s, state %s, %s driver, %.0fx real time\n",
+                s.value("t", 0.0), s["state"].get<std::string>().c_str(),
+                s["driver"].get<std::string>().c_str(), s["realtime_factor"].get<double>());
+  out += line;
+  if (truth) {
+    std::snprintf(line, sizeof line, "%-18s %16s %16s %12s %12s\n", "parameter", "theta",
+                  "theta_hat", "rel.error", "sigma");
+  } else {
+    std::snprintf(line, sizeof line, "%-18s %16s %12s\n", "parameter", "theta_hat", "sigma");
+  }
+  out += line;
+  for (std::size_t i = 0; i < 6; ++i) {
+    const std::string hat = number_or_dash(s["theta_hat"][i], "%16.9g");
+    const std::string sigma = number_or_dash(s["sigma"][i], "%12.3e");
+    if (truth) {
+      std::snprintf(line, sizeof line, "%-18s %16s %16s %12s %12s\n", kThetaNames[i],
+                    number_or_dash(s["theta_true"][i], "%16.9g").c_str(), hat.c_str(),
+                    number_or_dash(s["rel_error"][i], "%12.3e").c_str(), sigma.c_str());
+    } else {
+      std::snprintf(line, sizeof line, "%-18s %16s %12s\n", kThetaNames[i], hat.c_str(),
+                    sigma.c_str());
+    }
+    out += line;
+  }
+  if (s.contains("refined")) out += refined_table(s);
+  return out;
+}
+
+}  // namespace scp::daemon

@@ -1,0 +1,270 @@
+#include "daemon/outputs/metrics/exposition.hpp"
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <string_view>
+
+#include "daemon/core/published_state.hpp"
+
+namespace scp::daemon::metrics {
+namespace {
+
+using nlohmann::json;
+
+// θ's components (docs/numerics.md), as label values.
+constexpr std::array<const char*, 6> kParameters{"b_over_m",      "alpha1_over_m",   "k_over_m",
+                                                 "alpha2_over_m", "lambda_over_cth", "inv_r_cth"};
+
+std::string number(double value) {
+  if (std::isinf(value)) return value > 0 ? "+Inf" : "-Inf";
+  char text[40];
+  std::snprintf(text, sizeof text, "%.17g", value);
+  return text;
+}
+
+class Writer {
+ public:
+  explicit Writer(const std::string& actuator)
+      : base_label_("actuator=\"" + label_value(actuator) + "\"") {}
+
+  // HELP and TYPE once per metric, before its first sample.
+  void family(std::string_view name, std::string_view type, std::string_view help) {
+    out_ += "# HELP ";
+    out_ += name;
+    out_ += ' ';
+    out_ += help;
+    out_ += "\n# TYPE ";
+    out_ += name;
+    out_ += ' ';
+    out_ += type;
+    out_ += '\n';
+  }
+  void sample(std::string_view name, double value, const std::string& labels = {}) {
+    if (std::isnan(value)) return;
+    out_ += name;
+    out_ += '{';
+    out_ += base_label_;
+    if (!labels.empty()) {
+      out_ += ',';
+      out_ += labels;
+    }
+    out_ += "} ";
+    out_ += number(value);
+    out_ += '\n';
+  }
+  // A metric with one sample, when the member exists.
+  void single(std::string_view name, std::string_view type, std::string_view help,
+              const json& object, const char* key, double scale = 1.0) {
+    const auto it = object.find(key);
+    if (it == object.end() || !(it->is_number() || it->is_boolean())) return;
+    family(name, type, help);
+    sample(name, it->is_boolean() ? (it->get<bool>() ? 1.0 : 0.0) : it->get<double>() * scale);
+  }
+  std::string take() { return std::move(out_); }
+
+ private:
+  std::string base_label_;
+  std::string out_;
+};
+
+double get(const json& object, const char* key, double otherwise = NAN) {
+  const auto it = object.find(key);
+  return it != object.end() && it->is_number() ? it->get<double>() : otherwise;
+}
+
+void identity_metrics(Writer& w, const json& status) {
+  w.family("scp_estimator_info", "gauge", "the daemon's release and driver (value 1)");
+  w.sample("scp_estimator_info", 1.0,
+           "release=\"" + label_value(status.value("release", "")) + "\",driver=\"" +
+               label_value(status.value("driver", "")) + "\"");
+  w.family("scp_estimator_state", "gauge", "1 for the loop's current state, 0 for the others");
+  const std::string state = status.value("state", "");
+  for (const auto& [value, name] : kRunStateNames) {
+    w.sample("scp_estimator_state", state == name ? 1.0 : 0.0,
+             std::string("state=\"") + name + "\"");
+  }
+  w.single("scp_estimator_uptime_seconds", "gauge", "loop time since the loop started", status,
+           "uptime_s");
+  w.single("scp_estimator_snapshot_timestamp_seconds", "gauge",
+           "wall-clock time (Unix epoch) of the snapshot these values come from", status, "unix_ns",
+           1e-9);
+}
+
+void output_metrics(Writer& w, const json& status) {
+  w.single("scp_estimator_excitation_enabled", "gauge", "1 when the excitation signal is on",
+           status, "excitation");
+  w.single("scp_estimator_output_volts", "gauge", "voltage the device last acknowledged", status,
+           "voltage");
+  w.single("scp_estimator_output_command_volts", "gauge",
+           "voltage the loop commanded this cycle, after the safety clamp", status,
+           "voltage_command");
+  w.family("scp_estimator_output_confirmed", "gauge",
+           "1 when the device acknowledged the latest command");
+  w.sample("scp_estimator_output_confirmed", status.value("output", "") == "confirmed" ? 1 : 0);
+  w.single("scp_estimator_faults_total", "counter", "entries into the fault state since start",
+           status, "fault_count");
+  w.single("scp_estimator_fault_recoveries_total", "counter",
+           "driver faults that cleared by themselves", status, "recoveries");
+  w.single("scp_estimator_faults_cleared_total", "counter", "faults cleared by clear-fault", status,
+           "faults_cleared");
+  if (status.contains("last_fault") && status["last_fault"].is_object())
+    w.single("scp_estimator_last_fault_timestamp_seconds", "gauge",
+             "wall-clock time (Unix epoch) of the latest fault", status["last_fault"], "unix_ns",
+             1e-9);
+}
+
+// The loop's lateness histogram as a Prometheus histogram: bucket le = the upper edge of each
+// bin, cumulative. The sum is mean × count (the loop keeps no exact sum).
+void lateness_histogram(Writer& w, const json& histogram, const json& lateness) {
+  const json edges = histogram.value("edges_us", json::array());
+  const json counts = histogram.value("counts", json::array());
+  if (!edges.is_array() || !counts.is_array() || edges.size() != counts.size() || edges.empty()) {
+    return;
+  }
+  const std::string name = "scp_estimator_loop_lateness_seconds";
+  w.family(name, "histogram", "wake-up lateness of the loop after its deadline");
+  double cumulative = 0.0;
+  for (std::size_t i = 0; i + 1 < edges.size(); ++i) {
+    cumulative += counts[i].get<double>();
+    w.sample(name + "_bucket", cumulative,
+             "le=\"" + number(edges[i + 1].get<double>() * 1e-6) + "\"");
+  }
+  cumulative += counts.back().get<double>();
+  w.sample(name + "_bucket", cumulative, "le=\"+Inf\"");
+  w.sample(name + "_sum", get(lateness, "mean", 0.0) * 1e-6 * cumulative);
+  w.sample(name + "_count", cumulative);
+}
+
+void loop_metrics(Writer& w, const json& status) {
+  const json loop = status.value("loop", json::object());
+  w.single("scp_estimator_loop_cycles_total", "counter", "loop cycles run", loop, "cycles");
+  w.single("scp_estimator_loop_overruns_total", "counter",
+           "cycles whose work ran past the next deadline", loop, "overruns");
+  w.single("scp_estimator_loop_missed_periods_total", "counter",
+           "periods skipped to resynchronise after overruns", loop, "missed_periods");
+  const json lateness = loop.value("lateness_us", json::object());
+  w.single("scp_estimator_loop_lateness_max_seconds", "gauge",
+           "largest wake-up lateness since start", lateness, "max", 1e-6);
+  w.single("scp_estimator_loop_lateness_p99_seconds", "gauge",
+           "99th percentile of the wake-up lateness since start (from the histogram)", lateness,
+           "p99", 1e-6);
+  const json exec = loop.value("exec_us", json::object());
+  w.single("scp_estimator_loop_exec_max_seconds", "gauge", "longest cycle execution time", exec,
+           "max", 1e-6);
+  w.single("scp_estimator_loop_exec_mean_seconds", "gauge", "mean cycle execution time", exec,
+           "mean", 1e-6);
+  lateness_histogram(w, loop.value("histogram", json::object()), lateness);
+}
+
+void driver_metrics(Writer& w, const json& status) {
+  const json driver = status.value("driver_stats", json::object());
+  static constexpr std::array<std::array<const char*, 3>, 8> kDriverCounters{{
+      {"reads", "scp_estimator_driver_reads_total", "driver read transactions"},
+      {"read_errors", "scp_estimator_driver_read_errors_total", "failed driver reads"},
+      {"writes", "scp_estimator_driver_writes_total", "driver write transactions"},
+      {"write_errors", "scp_estimator_driver_write_errors_total", "failed driver writes"},
+      {"dropped", "scp_estimator_driver_dropped_total",
+       "frames that arrived but could not be used"},
+      {"reconnects", "scp_estimator_driver_reconnects_total", "reconnections of the link"},
+      {"late_replies", "scp_estimator_driver_late_replies_total",
+       "replies that came after their timeout and were discarded"},
+      {"stretched_stamps", "scp_estimator_driver_stretched_stamps_total",
+       "transactions too long for their midpoint to stamp the device's event"},
+  }};
+  for (const auto& [key, name, help] : kDriverCounters)
+    w.single(name, "counter", help, driver, key);
+  w.single("scp_estimator_driver_link_up", "gauge", "1 while the device answers", driver,
+           "link_up");
+}
+
+void service_metrics(Writer& w, const json& status) {
+  if (status.contains("recording") && status["recording"].is_object())
+    w.single("scp_estimator_recording_dropped_rows_total", "counter",
+             "recording rows the loop dropped because the recorder's ring was full",
+             status["recording"], "dropped_rows");
+  if (status.contains("refine") && status["refine"].is_object()) {
+    const json& refine = status["refine"];
+    w.single("scp_estimator_refine_fits_total", "counter", "output-error fits finished", refine,
+             "fits");
+    w.single("scp_estimator_refine_converged_fits_total", "counter",
+             "output-error fits that converged", refine, "converged_fits");
+    w.single("scp_estimator_refine_handoff_dropped_total", "counter",
+             "samples the refinement's hand-off ring had no room for", refine, "handoff_dropped");
+  }
+}
+
+void theta_samples(Writer& w, const char* name, const json& values, const char* estimator) {
+  if (!values.is_array()) return;
+  for (std::size_t i = 0; i < values.size() && i < kParameters.size(); ++i) {
+    if (!values[i].is_number()) continue;
+    w.sample(name, values[i].get<double>(),
+             std::string("estimator=\"") + estimator + "\",parameter=\"" + kParameters[i] + "\"");
+  }
+}
+
+void estimate_metrics(Writer& w, const json& estimate) {
+  const bool refined = estimate.contains("refined") && estimate["refined"].is_object();
+  w.family("scp_estimator_theta", "gauge",
+           "estimated parameter (docs/numerics.md): paper = the online law, refined = the "
+           "output-error fit");
+  theta_samples(w, "scp_estimator_theta", estimate.value("theta_hat", json()), "paper");
+  if (refined)
+    theta_samples(w, "scp_estimator_theta", estimate["refined"].value("theta_hat", json()),
+                  "refined");
+  w.family("scp_estimator_theta_sigma", "gauge", "standard deviation of the estimated parameter");
+  theta_samples(w, "scp_estimator_theta_sigma", estimate.value("sigma", json()), "paper");
+  if (refined)
+    theta_samples(w, "scp_estimator_theta_sigma", estimate["refined"].value("sigma", json()),
+                  "refined");
+  if (estimate.contains("converged") && estimate["converged"].is_object()) {
+    w.family("scp_estimator_converged", "gauge",
+             "1 when every sigma_i/|theta_i| of the block is below estimator.converged_rel_sigma");
+    for (const auto& [block, flag] : estimate["converged"].items())
+      if (flag.is_boolean())
+        w.sample("scp_estimator_converged", flag.get<bool>() ? 1 : 0,
+                 "block=\"" + label_value(block) + "\"");
+  }
+  if (estimate.contains("best") && estimate["best"].is_string()) {
+    w.family("scp_estimator_best_refined", "gauge",
+             "1 when the refined estimate is the better one (ESTIMATE best), 0 for the paper's");
+    w.sample("scp_estimator_best_refined", estimate["best"] == "refined" ? 1 : 0);
+  }
+  w.single("scp_estimator_estimate_updates_total", "counter", "estimator updates", estimate,
+           "updates");
+  w.single("scp_estimator_estimate_skipped_total", "counter",
+           "samples the estimator rejected (non-finite, out of range, time)", estimate, "skipped");
+  w.single("scp_estimator_estimate_loop_time_seconds", "gauge",
+           "loop time of the latest estimator update", estimate, "t");
+}
+
+}  // namespace
+
+std::string label_value(const std::string& text) {
+  std::string out;
+  for (const char c : text) {
+    if (c == '\\') {
+      out += "\\\\";
+    } else if (c == '"') {
+      out += "\\\"";
+    } else if (c == '\n') {
+      out += "\\n";
+    } else {
+      out += c;
+    }
+  }
+  return out;
+}
+
+std::string exposition(const json& status, const json& estimate, const std::string& actuator) {
+  Writer w(actuator);
+  identity_metrics(w, status);
+  output_metrics(w, status);
+  loop_metrics(w, status);
+  driver_metrics(w, status);
+  service_metrics(w, status);
+  estimate_metrics(w, estimate);
+  return w.take();
+}
+
+}  // namespace scp::daemon::metrics

@@ -1,0 +1,50 @@
+#pragma once
+// JSON rendering of every reply class (docs/protocol.md). Each function returns one complete line
+// including the trailing '\n'. Pure functions: no I/O, no clock.
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <string_view>
+
+#include "daemon/analysis/refine/refined_view.hpp"
+#include "daemon/core/published_state.hpp"
+#include "daemon/core/rt/latency_histogram.hpp"
+#include "daemon/outputs/server/audit.hpp"
+#include "daemon/outputs/server/settings.hpp"
+
+namespace scp::daemon::server {
+
+inline constexpr int kProtoMajor = 1;
+// 1.1: refined, best, paper_biased; STATUS refine. 1.2: STATUS loop.lateness_us.p99_9 and
+// loop.lateness_histogram_ns (1 % resolution); utc/unix_ns in ESTIMATE and STATUS; STATUS
+// actuator, fault_count, recoveries, faults_cleared, last_fault, last_command, recording.
+inline constexpr int kProtoMinor = 5;
+
+std::string render_version(std::string_view release);
+std::string render_error(std::string_view message);
+std::string render_ack(std::string_view request, bool ok, std::string_view message);
+std::string render_watch(bool enable, double rate_hz);
+// `refined` is null when the refinement is disabled (refine.enabled: false). With `lateness` (the
+// loop's fine histogram) the lateness percentiles come from it and its non-empty buckets are
+// listed; without it, from the coarse histogram in `state`. `last_command` is null until a
+// mutating request arrived.
+std::string render_status(const PublishedState& state, const ServerInfo& info,
+                          const refine::RefinedView* refined = nullptr,
+                          const rt::LatencyHistogram::Snapshot* lateness = nullptr,
+                          const CommandRecord* last_command = nullptr);
+// `now_t` is the loop time (PublishedState::uptime_s): the age of the refined fit decides `best`.
+std::string render_estimate(const EstimateView& estimate,
+                            const refine::RefinedView* refined = nullptr, double now_t = 0.0);
+// The ESTIMATE object itself, which the batch summary extends (daemon/batch/).
+nlohmann::json estimate_json(const EstimateView& estimate, const refine::RefinedView* refined,
+                             double now_t);
+
+// "2026-11-23T08:30:00.123Z"
+std::string utc_time(std::int64_t unix_ns);
+// "utc" (ISO 8601, ms) and "unix_ns" (CLOCK_REALTIME, ns): omitted while unix_ns is 0.
+void put_wall_clock(nlohmann::json& out, std::int64_t unix_ns);
+
+// Lower edge (µs) of lateness histogram bin i: 0, 1, 2, 4, ..., 2^30 (published_state.hpp).
+double histogram_lower_edge_us(std::size_t bin) noexcept;
+
+}  // namespace scp::daemon::server
