@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstring>
 
 #include "drivers/modbus/line_io.hpp"
 #include "drivers/modbus/wire_time.hpp"
@@ -80,7 +81,12 @@ std::unique_ptr<ModbusLink> ModbusLink::connect(const ModbusSettings& s, std::st
   // Without the kernel's stamps a transaction ends at the loop thread's clock reading: worse on a
   // loaded machine, not wrong.
   if (s.transport == Transport::tcp) enable_receive_stamps(modbus_get_socket(ctx.get()));
-  return std::unique_ptr<ModbusLink>(new ModbusLink(ctx.release(), s));
+  std::unique_ptr<ModbusLink> link(new ModbusLink(ctx.release(), s));
+  if (s.transport == Transport::rtu && !link->rtu_.attach(link->fd_)) {
+    error = std::string("cannot watch the serial port (epoll): ") + std::strerror(errno);
+    return nullptr;
+  }
+  return link;
 }
 
 int ModbusLink::transact(const std::uint8_t* request, int request_len, Pdu& reply,
@@ -89,8 +95,7 @@ int ModbusLink::transact(const std::uint8_t* request, int request_len, Pdu& repl
     return tcp_.transact(fd_, unit_, request, request_len, reply, reply_len, timeout_s_,
                          not_after_ns_);
   }
-  return rtu_.transact(fd_, unit_, request, request_len, reply, reply_len, timeout_s_,
-                       not_after_ns_);
+  return rtu_.transact(unit_, request, request_len, reply, reply_len, timeout_s_, not_after_ns_);
 }
 
 int ModbusLink::read_registers(const ReadBlock& block, std::uint16_t* registers) noexcept {

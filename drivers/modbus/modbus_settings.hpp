@@ -72,8 +72,8 @@ struct ModbusSettings {
   // machine, not a dead DAQ. scp-estimatord --offline uses this timeout and skips check_timing().
   double offline_response_timeout_s = 1.0;
   // false only for offline (lock-step) runs: no period budget to check, and no inter-frame
-  // silence kept on an RTU line (the lock-step simulator takes frames by their length, and the
-  // silences of 50 000 steps would add minutes to a run that has no wall clock).
+  // silence kept on an RTU line (the lock-step simulator takes frames by their length, and a
+  // silence in each of a run's many steps would only slow a run that has no wall clock).
   bool enforce_period_budget = true;
   int max_consecutive_failures = 3;  // failed transactions tolerated in a row
   double reconnect_initial_s = 0.1;  // back-off of the reconnect thread, doubled per attempt

@@ -1,6 +1,7 @@
 #include "drivers/modbus/rtu_transaction.hpp"
 
 #include <modbus/modbus.h>
+#include <sys/epoll.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -49,27 +50,67 @@ std::int64_t rtu_silence_ns(std::int64_t char_ns, int baud) noexcept {
   return baud > 19200 ? 1'750'000 : char_ns * 7 / 2;
 }
 
-int RtuTransaction::await_silence(int fd, std::int64_t deadline_ns) noexcept {
+RtuTransaction::~RtuTransaction() {
+  if (epoll_fd_ >= 0) ::close(epoll_fd_);
+}
+
+bool RtuTransaction::attach(int fd) noexcept {
+  if (epoll_fd_ >= 0) ::close(epoll_fd_);
+  fd_ = fd;
+  epoll_fd_ = epoll_create1(EPOLL_CLOEXEC);
+  if (epoll_fd_ < 0) return false;
+  epoll_event ev{};
+  ev.events = EPOLLIN | EPOLLET;
+  ev.data.fd = fd;
+  if (epoll_ctl(epoll_fd_, EPOLL_CTL_ADD, fd, &ev) != 0) return false;
+  // Whatever the port held before is discarded, and a reply to the previous connection's last
+  // request may still be on its way: the first request, too, waits for the line's silence.
+  unread_ = true;
+  line_busy_until_ns_ = monotonic_ns();
+  return true;
+}
+
+int RtuTransaction::wait_bytes(std::int64_t deadline_ns) noexcept {
+  if (unread_) return 1;
+  for (;;) {
+    const std::int64_t left = std::max<std::int64_t>(0, deadline_ns - monotonic_ns());
+    const timespec ts{static_cast<time_t>(left / 1'000'000'000),
+                      static_cast<long>(left % 1'000'000'000)};
+    epoll_event ev{};
+    const int rc = epoll_pwait2(epoll_fd_, &ev, 1, &ts, nullptr);
+    if (rc > 0) {
+      hung_up_ = (ev.events & (EPOLLHUP | EPOLLERR)) != 0;
+      return 1;
+    }
+    if (rc == 0 && left == 0) return 0;
+    if (rc < 0 && errno != EINTR) return -errno;
+  }
+}
+
+int RtuTransaction::read_bytes(std::uint8_t* buf, std::size_t size) noexcept {
+  const ssize_t n = ::read(fd_, buf, size);
+  unread_ = n > 0 && static_cast<std::size_t>(n) == size;
+  if (n > 0) return static_cast<int>(n);
+  if (n < 0 && errno != EAGAIN && errno != EINTR) return -errno;
+  // Nothing to read: a tty without bytes reads 0, a socket at its end too.
+  return hung_up_ ? -EIO : 0;
+}
+
+int RtuTransaction::await_silence(std::int64_t deadline_ns) noexcept {
+  // A tty holds at most 4 KiB: one read takes whatever came.
+  std::array<std::uint8_t, 4096> stale{};
   bool discarded = false;
   for (;;) {
     const std::int64_t quiet_at = line_busy_until_ns_ + silence_ns_;
-    const std::int64_t now = monotonic_ns();
-    if (now >= quiet_at) {
-      // Bytes that came before the wait began were not seen arriving: drop them too. Their time
-      // is unknown, so the line counts as busy until now.
-      const ssize_t n = ::read(fd, rx_.data(), rx_.size());
-      if (n <= 0) break;
-      discarded = true;
-      line_busy_until_ns_ = monotonic_ns();
-      continue;
-    }
     if (quiet_at > deadline_ns) return EBUSY;
-    const int ready = wait_readable(fd, quiet_at);
+    // Up to the silence's end; at once, without waiting, when it has passed already.
+    const int ready = wait_bytes(std::max(quiet_at, monotonic_ns()));
     if (ready < 0) return -ready;
-    if (ready == 0) continue;
-    const ssize_t n = ::read(fd, rx_.data(), rx_.size());
-    if (n < 0 && errno != EAGAIN && errno != EINTR) return errno;
+    if (ready == 0) break;
+    const int n = read_bytes(stale.data(), stale.size());
+    if (n < 0) return -n;
     if (n > 0) {
+      // Bytes seen only now may have come earlier: the line counts as busy until now.
       discarded = true;
       line_busy_until_ns_ = monotonic_ns();
     }
@@ -78,7 +119,7 @@ int RtuTransaction::await_silence(int fd, std::int64_t deadline_ns) noexcept {
   return 0;
 }
 
-int RtuTransaction::send_frame(int fd, int unit, const std::uint8_t* pdu, int pdu_len) noexcept {
+int RtuTransaction::send_frame(int unit, const std::uint8_t* pdu, int pdu_len) noexcept {
   std::array<std::uint8_t, kMaxFrame> frame{};
   frame[0] = static_cast<std::uint8_t>(unit);
   std::memcpy(frame.data() + 1, pdu, static_cast<std::size_t>(pdu_len));
@@ -87,7 +128,7 @@ int RtuTransaction::send_frame(int fd, int unit, const std::uint8_t* pdu, int pd
   frame[pdu_len + 2] = static_cast<std::uint8_t>(crc >> 8);
   const int total = pdu_len + 3;
   sent_ns_ = monotonic_ns();
-  if (const int err = send_frame_bytes(fd, frame.data(), total, false); err != 0) return err;
+  if (const int err = send_frame_bytes(fd_, frame.data(), total, false); err != 0) return err;
   // The port sends the frame from now on: the line carries it for total characters.
   line_busy_until_ns_ = sent_ns_ + total * char_ns_;
   return 0;
@@ -112,19 +153,16 @@ int RtuTransaction::judge_frame(int unit, int function) noexcept {
   return 2;
 }
 
-int RtuTransaction::receive_frame(int fd, int unit, int function,
-                                  std::int64_t deadline_ns) noexcept {
+int RtuTransaction::receive_frame(int unit, int function, std::int64_t deadline_ns) noexcept {
   rx_len_ = 0;
   for (;;) {
-    const int ready = wait_readable(fd, deadline_ns);
+    const int ready = wait_bytes(deadline_ns);
     if (ready == 0) return ETIMEDOUT;
     if (ready < 0) return -ready;
-    const ssize_t n =
-        ::read(fd, rx_.data() + rx_len_, rx_.size() - static_cast<std::size_t>(rx_len_));
-    if (n < 0 && (errno == EAGAIN || errno == EINTR)) continue;
-    if (n < 0) return errno;
-    if (n == 0) return EIO;  // the port hung up (an unplugged adapter)
-    rx_len_ += static_cast<int>(n);
+    const int n = read_bytes(rx_.data() + rx_len_, rx_.size() - static_cast<std::size_t>(rx_len_));
+    if (n < 0) return -n;
+    if (n == 0) continue;
+    rx_len_ += n;
     const std::int64_t now = monotonic_ns();
     line_busy_until_ns_ = std::max(line_busy_until_ns_, now);
     // Frames that are not the answer are refused at once; the rest of such a frame is discarded
@@ -139,17 +177,17 @@ int RtuTransaction::receive_frame(int fd, int unit, int function,
   }
 }
 
-int RtuTransaction::transact(int fd, int unit, const std::uint8_t* pdu, int pdu_len, Pdu& reply,
+int RtuTransaction::transact(int unit, const std::uint8_t* pdu, int pdu_len, Pdu& reply,
                              int& reply_len, double timeout_s, std::int64_t not_after_ns) noexcept {
-  if (fd < 0) return EBADF;
+  if (epoll_fd_ < 0) return EBADF;
   if (pdu_len < 1 || pdu_len > kMaxPdu) return EINVAL;
   const auto timeout_ns = static_cast<std::int64_t>(timeout_s * 1e9);
   sent_ns_ = received_ns_ = 0;
   const std::int64_t silent_by = std::min(monotonic_ns() + timeout_ns, not_after_ns);
-  if (const int err = await_silence(fd, silent_by); err != 0) return err;
-  if (const int err = send_frame(fd, unit, pdu, pdu_len); err != 0) return err;
+  if (const int err = await_silence(silent_by); err != 0) return err;
+  if (const int err = send_frame(unit, pdu, pdu_len); err != 0) return err;
   const std::int64_t reply_by = std::min(sent_ns_ + timeout_ns, not_after_ns);
-  if (const int err = receive_frame(fd, unit, pdu[0], reply_by); err != 0) return err;
+  if (const int err = receive_frame(unit, pdu[0], reply_by); err != 0) return err;
   reply_len = rx_len_ - 3;  // without the address and the CRC
   std::memcpy(reply.data(), rx_.data() + 1, static_cast<std::size_t>(reply_len));
   return 0;

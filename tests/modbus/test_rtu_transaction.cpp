@@ -69,7 +69,11 @@ std::vector<std::uint8_t> read_reply(std::uint16_t value) {
 }
 
 struct Master {
-  RtuTransaction rtu{kCharNs, kSilenceNs};
+  explicit Master(const Line& line, std::int64_t silence_ns = kSilenceNs)
+      : rtu(kCharNs, silence_ns) {
+    EXPECT_TRUE(rtu.attach(line.master));
+  }
+  RtuTransaction rtu;
   Pdu request{};
   int request_len = 0;
   Pdu reply{};
@@ -77,13 +81,13 @@ struct Master {
   int read(const Line& line, double timeout_s,
            std::int64_t not_after = std::numeric_limits<std::int64_t>::max()) {
     request_len = read_registers_pdu(false, 1000, 1, request.data());
-    return rtu.transact(line.master, kUnit, request.data(), request_len, reply, reply_len,
-                        timeout_s, not_after);
+    (void)line;
+    return rtu.transact(kUnit, request.data(), request_len, reply, reply_len, timeout_s, not_after);
   }
   int write(const Line& line, std::uint16_t value, double timeout_s) {
     request_len = write_registers_pdu(6, 1100, 1, &value, request.data());
-    return rtu.transact(line.master, kUnit, request.data(), request_len, reply, reply_len,
-                        timeout_s);
+    (void)line;
+    return rtu.transact(kUnit, request.data(), request_len, reply, reply_len, timeout_s);
   }
   std::uint16_t value() const {
     std::uint16_t v = 0;
@@ -102,7 +106,7 @@ TEST(RtuTransaction, CrcIsLibmodbussOwn) {
 
 TEST(RtuTransaction, RequestIsFramedAndTheReplyCheckedByLengthCrcAndUnit) {
   Line line;
-  Master m;
+  Master m(line);
   std::thread slave([&] {
     EXPECT_EQ(line.request(), framed({kUnit, 0x03, 0x03, 0xE8, 0x00, 0x01}));
     // The reply in two pieces, as a UART delivers it: complete only with the second.
@@ -136,7 +140,7 @@ TEST(RtuTransaction, RequestIsFramedAndTheReplyCheckedByLengthCrcAndUnit) {
 
 TEST(RtuTransaction, EveryRequestWaitsForTheInterFrameSilence) {
   Line line;
-  Master m;
+  Master m(line);
   std::int64_t reply_sent = 0, next_arrived = 0;
   std::thread slave([&] {
     line.request();
@@ -153,52 +157,58 @@ TEST(RtuTransaction, EveryRequestWaitsForTheInterFrameSilence) {
   EXPECT_GE(m.rtu.request_sent_ns() - read_reply_received, kSilenceNs);
 }
 
-TEST(RtuTransaction, LateReplyIsDrainedOrRecognisedNeverTakenForTheNextAnswer) {
+// The steps below are hundreds of milliseconds apart (a silence of 400 ms instead of t3.5), so
+// that a loaded machine's late wake-ups do not reorder them.
+TEST(RtuTransaction, RestOfALateReplyIsDrainedBeforeTheNextRequest) {
   Line line;
-  Master m;
-  // A silence of 20 ms instead of t3.5, so that the steps below are milliseconds apart.
-  constexpr std::int64_t kLongSilence = 20'000'000;
-  m.rtu = RtuTransaction(kCharNs, kLongSilence);
+  constexpr std::int64_t kLongSilence = 400'000'000;
+  Master m(line, kLongSilence);
+  usleep(kLongSilence / 1000 + 50'000);  // the silence after attaching has passed
   // A read answered too late, its reply straddling the timeout: the rest arrives while the next
-  // transaction (a write) waits for the line to fall silent, and is drained.
+  // transaction (a write) waits for the line to fall silent, is discarded, and restarts the
+  // silence.
   std::int64_t rest_sent = 0, write_arrived = 0;
   std::thread slave([&] {
     line.request();
-    usleep(40'000);
+    usleep(30'000);
     const auto late = read_reply(0x0BAD);
     line.send({late.begin(), late.begin() + 4});
-    usleep(15'000);
+    usleep(200'000);
     line.send({late.begin() + 4, late.end()});
     rest_sent = monotonic_ns();
     line.request(&write_arrived);
     line.send(framed({kUnit, 0x06, 0x04, 0x4C, 0x00, 0x05}));
   });
-  EXPECT_EQ(m.read(line, 0.050), ETIMEDOUT);
-  ASSERT_EQ(m.write(line, 5, 0.5), 0);
+  EXPECT_EQ(m.read(line, 0.060), ETIMEDOUT);
+  ASSERT_EQ(m.write(line, 5, 2.0), 0);
   slave.join();
   EXPECT_EQ(m.rtu.late_replies(), 1u);
   EXPECT_GE(write_arrived - rest_sent, kLongSilence);
+}
 
-  // A write's echo that comes after its timeout and after the next read was sent: an intact
-  // reply to another function, recognised and dropped; the read's own reply follows.
-  std::thread slave2([&] {
+TEST(RtuTransaction, LateReplyToTheOtherFunctionIsRecognisedNotTakenForTheAnswer) {
+  Line line;
+  Master m(line);
+  // A command's echo that comes after its timeout, once the next read has been sent: an intact
+  // reply to another function, dropped; the read's own reply follows.
+  std::thread slave([&] {
     line.request();
-    usleep(45'000);
+    usleep(200'000);
     line.send(framed({kUnit, 0x06, 0x04, 0x4C, 0x00, 0x06}));
     line.request();
     usleep(200);
     line.send(read_reply(0x0042));
   });
   EXPECT_EQ(m.write(line, 6, 0.030), ETIMEDOUT);
-  ASSERT_EQ(m.read(line, 0.5), 0);
-  slave2.join();
+  ASSERT_EQ(m.read(line, 2.0), 0);
+  slave.join();
   EXPECT_EQ(m.value(), 0x0042);
-  EXPECT_EQ(m.rtu.late_replies(), 2u);
+  EXPECT_EQ(m.rtu.late_replies(), 1u);
 }
 
 TEST(RtuTransaction, NeverRunsPastItsBudget) {
   Line line;
-  Master m;
+  Master m(line);
   // Nobody answers: the budget ends the wait before the response timeout would.
   std::int64_t begin = monotonic_ns();
   EXPECT_EQ(m.read(line, 0.5, begin + 20'000'000), ETIMEDOUT);
@@ -206,21 +216,16 @@ TEST(RtuTransaction, NeverRunsPastItsBudget) {
   EXPECT_GE(took, 19'000'000);
   EXPECT_LT(took, 100'000'000);
   line.request();
-  // A line that never falls silent (a byte every millisecond): no request is sent, and the
-  // transaction gives up within its response timeout.
-  std::thread chatter([&] {
-    for (int i = 0; i < 60; ++i) {
-      line.send({0x55});
-      usleep(1000);
-    }
-  });
-  usleep(3000);  // the chatter has begun
+  // A byte on the line just now, and a silence (here 100 ms) that could not end within the
+  // response timeout (50 ms): no request is sent, and the transaction gives up at once instead of
+  // waiting for the silence.
+  Master quiet_wanted(line, 100'000'000);
+  line.send({0x55});
   begin = monotonic_ns();
-  EXPECT_EQ(m.read(line, 0.030), EBUSY);
+  EXPECT_EQ(quiet_wanted.read(line, 0.050), EBUSY);
   took = monotonic_ns() - begin;
-  chatter.join();
-  EXPECT_LT(took, 60'000'000);
-  EXPECT_EQ(m.rtu.request_sent_ns(), 0);
+  EXPECT_LT(took, 50'000'000);
+  EXPECT_EQ(quiet_wanted.rtu.request_sent_ns(), 0);
 }
 
 }  // namespace
