@@ -210,8 +210,10 @@ void ModbusDriver::prepare() {
   read_gate_.reset();
   write_gate_.reset();
   gap_ns_ = std::llround(kRtuFrameGapChars * char_time_s(settings_) * 1e9);
-  cycle_budget_ns_ =
-      std::llround(transactions_per_cycle(settings_) * settings_.response_timeout_s * 1e9);
+  // A cycle's I/O fits its period (check_timing() approved n x response_timeout within it); an
+  // offline run has no wall-clock period to fit.
+  cycle_budget_ns_ = settings_.enforce_period_budget ? std::llround(period_s_ * 1e9)
+                                                     : std::numeric_limits<std::int64_t>::max() / 2;
 }
 
 void ModbusDriver::connect_first() {
@@ -388,11 +390,11 @@ IoResult ModbusDriver::read(const CycleTime& now, Sample& out) noexcept {
   }
   deadline_ns_ = now.deadline_ns;
   deadline_t_ = now.t;
-  // The cycle's transactions share the time check_timing() approved for them, from the cycle's
-  // deadline: a slow one leaves the others less, and they end by the next deadline.
-  const std::int64_t entered_ns = monotonic_ns();
-  const bool on_time = now.deadline_ns > 0 && now.deadline_ns <= entered_ns;
-  link_->limit_until((on_time ? now.deadline_ns : entered_ns) + cycle_budget_ns_);
+  // The cycle's transactions share one period: each waits for its reply at most the response
+  // timeout, a slow one leaves the others less, and together they never take longer than a
+  // period. Counted from now, not from the deadline, so that a cycle that woke late still gets
+  // its whole share.
+  link_->limit_until(monotonic_ns() + cycle_budget_ns_);
   std::int64_t sampled_ns = 0;  // midpoint of the transaction that read x
   for (std::size_t i = 0; i < plan_.blocks.size(); ++i) {
     const std::int64_t called_ns = stamping() ? monotonic_ns() : 0;

@@ -141,7 +141,7 @@ class ModbusDriver final : public Driver {
   // that silence itself before sending: ModbusLink.)
   std::int64_t line_free_ns_ = 0;
   std::int64_t gap_ns_ = 0;
-  std::int64_t cycle_budget_ns_ = 0;  // response timeout × the transactions of a cycle
+  std::int64_t cycle_budget_ns_ = 0;  // what a cycle's transactions share: the loop period
   // The last transaction's bounds on the line: from when its request left (the link's clock,
   // or `called_ns` if it never did) to when its reply arrived (the link's, or now), the begin
   // moved to when a gateway's line could carry it.
