@@ -366,8 +366,11 @@ const char* ModbusDriver::transaction_failed(const Reasons& reasons, int err) no
     doom_link(reasons.dropped[index].c_str());
     return reasons.dropped[index].c_str();
   }
-  if (index == kTimeout) {
-    // A streak of timeouts is a lost link (cable pulled, device rebooted): reconnect.
+  if (index == kTimeout && settings_.transport == Transport::tcp) {
+    // A streak of timeouts over TCP is a lost connection (cable pulled, device rebooted, a
+    // half-open socket): reconnect. A serial port does not get better for being reopened: the
+    // next cycles keep asking (the loop faults and commands 0 V meanwhile), and a port that is
+    // gone fails with its own errors (EIO, ENODEV), which drop the link.
     if (++timeout_streak_ > settings_.max_consecutive_failures) {
       doom_link(reasons.dropped[index].c_str());
       return reasons.dropped[index].c_str();

@@ -2,6 +2,7 @@
 
 #include <modbus/modbus.h>
 #include <sys/epoll.h>
+#include <termios.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -183,11 +184,17 @@ int RtuTransaction::transact(int unit, const std::uint8_t* pdu, int pdu_len, Pdu
   if (pdu_len < 1 || pdu_len > kMaxPdu) return EINVAL;
   const auto timeout_ns = static_cast<std::int64_t>(timeout_s * 1e9);
   sent_ns_ = received_ns_ = 0;
+  // What the port has not sent of an unanswered request would be answered into this one's wait.
+  if (unanswered_) tcflush(fd_, TCOFLUSH);
+  unanswered_ = false;
   const std::int64_t silent_by = std::min(monotonic_ns() + timeout_ns, not_after_ns);
   if (const int err = await_silence(silent_by); err != 0) return err;
   if (const int err = send_frame(unit, pdu, pdu_len); err != 0) return err;
   const std::int64_t reply_by = std::min(sent_ns_ + timeout_ns, not_after_ns);
-  if (const int err = receive_frame(unit, pdu[0], reply_by); err != 0) return err;
+  if (const int err = receive_frame(unit, pdu[0], reply_by); err != 0) {
+    unanswered_ = true;
+    return err;
+  }
   reply_len = rx_len_ - 3;  // without the address and the CRC
   std::memcpy(reply.data(), rx_.data() + 1, static_cast<std::size_t>(reply_len));
   return 0;

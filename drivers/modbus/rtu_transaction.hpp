@@ -12,6 +12,10 @@
 //   on a tty with no byte ready waits for the kernel's tty worker to finish delivering the bytes
 //   in flight. That worker runs at ordinary priority: on a loaded machine the loop thread, at
 //   real-time priority, waited behind it for milliseconds, beyond any timeout.
+// - Without any flush, a request the port did not send in time still goes out later: on a loaded
+//   machine the tty layer held a pty's output for many cycles, and their requests then left at
+//   once, each answered into a later transaction's wait. So after a request that got no answer,
+//   the port's unsent output is discarded (tcflush TCOFLUSH) before the next one.
 // Here a transaction is: wait until the line has been silent for t3.5 (discarding whatever
 // arrives meanwhile: the rest of a late reply), send the request, collect the reply until its
 // length (known from its function code and byte count) is complete, check its CRC and unit. One
@@ -86,6 +90,8 @@ class RtuTransaction {
   // A read filled its buffer: more bytes may wait, and edge-triggered epoll will not say so.
   bool unread_ = false;
   bool hung_up_ = false;
+  // The last request went out and got no whole reply: some of it may still wait in the port.
+  bool unanswered_ = false;
   std::array<std::uint8_t, kMaxFrame> rx_{};
   int rx_len_ = 0;
   // The line's last activity: the end of the last byte read, or of the last request's wire time.

@@ -73,15 +73,18 @@ PollCount mbpoll_count(const std::string& out) {
 struct LineCount {
   long long master_frames = -1;
   long long short_silences = -1;
+  long long longest_master_frame = -1;
 };
 LineCount line_count(const std::string& out) {
   const std::regex re(
-      "serial line: (\\d+) master frames, \\d+ slave frames; (\\d+) master frames began less");
+      "serial line: (\\d+) master frames, \\d+ slave frames; (\\d+) master frames began "
+      "less[^;]*; [^;]*; longest master frame (\\d+) bytes");
   LineCount c;
   for (auto it = std::sregex_iterator(out.begin(), out.end(), re); it != std::sregex_iterator();
        ++it) {
     c.master_frames = std::stoll((*it)[1]);
     c.short_silences = std::stoll((*it)[2]);
+    c.longest_master_frame = std::stoll((*it)[3]);
   }
   return c;
 }
@@ -256,6 +259,9 @@ void run_beside_mbpoll(const RtuRun& run) {
   // A request sent after a timeout can still meet a reply that was later than that (the line
   // showed no byte of it yet): at most one such collision per failed transaction.
   EXPECT_LE(short_silences, failed) << daemon_line.process->output();
+  // Requests leave one at a time: none the port held back went out glued to a later one (the map
+  // reads and writes with 8-byte requests).
+  EXPECT_EQ(after.longest_master_frame, 8) << daemon_line.process->output();
 }
 
 // mbpoll's own timeout, 10 ms (its shortest), and the longest period a read and a write at that

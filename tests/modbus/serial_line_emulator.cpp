@@ -12,8 +12,9 @@
 // It also watches the line as the Modbus serial line specification (V1.02, §2.5.1.1) does: a
 // master's frame must begin at least t3.5 after the end of the previous frame on the line, either
 // way (3.5 characters, fixed 1.75 ms above 19200 Bd). It prints how many master frames began
-// sooner, the shortest silence seen and the frame counts (all since start) on SIGUSR1, and on
-// SIGTERM before it exits.
+// sooner, the shortest silence seen, the longest master frame (requests a port held back leave
+// glued together) and the frame counts (all since start) on SIGUSR1, and on SIGTERM before it
+// exits.
 //
 //   usage: serial_line_emulator [--baud B] [--parity N|E|O] [--data-bits D] [--stop-bits S]
 //                               [--slave-port PORT] [--trace FILE]
@@ -167,9 +168,13 @@ class LineMonitor {
       if (from == 'M') count_master_frame(start);
       if (!keep_ && !frames_.empty()) frames_.pop_front();
       frames_.push_back({start, b.end_ns, from, {}});
+      master_frame_bytes_ = 0;
       ++(from == 'M' ? master_frames_ : slave_frames_);
     }
     frames_.back().end_ns = b.end_ns;
+    if (from == 'M') {
+      longest_master_ = std::max(longest_master_, ++master_frame_bytes_);
+    }
     if (keep_) frames_.back().bytes.push_back(b.value);
   }
 
@@ -177,11 +182,12 @@ class LineMonitor {
     std::fprintf(out,
                  "serial line: %llu master frames, %llu slave frames; %llu master frames began "
                  "less than t3.5 (%.0f us) after the previous frame; shortest silence before a "
-                 "master frame %.0f us\n",
+                 "master frame %.0f us; longest master frame %llu bytes\n",
                  static_cast<unsigned long long>(master_frames_),
                  static_cast<unsigned long long>(slave_frames_),
                  static_cast<unsigned long long>(short_silences_), t35_ns_ * 1e-3,
-                 master_frames_ < 2 ? 0.0 : shortest_silence_ns_ * 1e-3);
+                 master_frames_ < 2 ? 0.0 : shortest_silence_ns_ * 1e-3,
+                 static_cast<unsigned long long>(longest_master_));
   }
 
   void write_trace(std::FILE* out, std::int64_t t0_ns) const {
@@ -205,6 +211,9 @@ class LineMonitor {
   bool keep_;
   std::deque<Frame> frames_;
   std::uint64_t master_frames_ = 0, slave_frames_ = 0, short_silences_ = 0;
+  // Bytes of the current master frame, and the most any had: more than one request's worth means
+  // requests the master's port held back and then sent at once.
+  std::uint64_t master_frame_bytes_ = 0, longest_master_ = 0;
   std::int64_t shortest_silence_ns_ = std::numeric_limits<std::int64_t>::max();
 };
 
