@@ -5,16 +5,14 @@
 // 0.2 % of its transactions and at most three times as often as the ordinary master beside it,
 // keep the line's inter-frame silence, stay RUNNING at every poll and never fall a period behind.
 
-#include <arpa/inet.h>
 #include <gtest/gtest.h>
-#include <netinet/in.h>
 #include <signal.h>
-#include <sys/socket.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <regex>
@@ -40,16 +38,21 @@ struct RtuRun {
   double timeout_s;
 };
 
-int free_tcp_port() {
-  const int s = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  bind(s, reinterpret_cast<sockaddr*>(&a), sizeof a);
-  socklen_t len = sizeof a;
-  getsockname(s, reinterpret_cast<sockaddr*>(&a), &len);
-  ::close(s);
-  return ntohs(a.sin_port);
+// The mean failure count that leaves a 5 % chance of seeing `k` or fewer (Poisson): mbpoll's rate
+// is measured from a few failures in thousands of polls, and the daemon is compared with the
+// highest rate those few are consistent with, not with a lucky low count (0 failures: 3.0).
+double poisson_upper_95(long long k) {
+  const auto cdf = [k](double mean) {
+    double term = std::exp(-mean), sum = term;
+    for (long long i = 1; i <= k; ++i) sum += term *= mean / static_cast<double>(i);
+    return sum;
+  };
+  double lo = 0.0, hi = 10.0 + 3.0 * static_cast<double>(k);
+  for (int i = 0; i < 60; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (cdf(mid) > 0.05 ? lo : hi) = mid;
+  }
+  return hi;
 }
 
 // mbpoll's closing statistics: "N frames transmitted, M received, E errors, ...".
@@ -197,10 +200,11 @@ void run_beside_mbpoll(const RtuRun& run) {
   }
   if (!executable(mbpoll)) SCP_PEER_MISSING("mbpoll is not installed (apt install mbpoll)");
   TempDir dir;
-  const int port = free_tcp_port();
-  ChildProcess slave(with_realtime_priority(
-      {python, SCP_PYMODBUS_RTU_SLAVE, "socket:127.0.0.1:" + std::to_string(port)}));
-  ASSERT_TRUE(slave.wait_for("pymodbus rtu slave ready", 15.0)) << slave.output();
+  ChildProcess slave(
+      with_realtime_priority({python, SCP_PYMODBUS_RTU_SLAVE, "socket:127.0.0.1:0"}));
+  ASSERT_TRUE(slave.wait_for("pymodbus rtu slave ready on port ", 15.0)) << slave.output();
+  const auto at = slave.output().find("on port ");
+  const int port = std::atoi(slave.output().c_str() + at + 8);
   // The daemon and mbpoll each on a line of their own to the same slave, at the same time: the
   // machine's load is the same for both.
   Line daemon_line = open_line(port), mbpoll_line = open_line(port);
@@ -236,9 +240,7 @@ void run_beside_mbpoll(const RtuRun& run) {
   const long long done = d.value("reads", 0LL) + d.value("writes", 0LL) + failed;
   const double rate = done > 0 ? static_cast<double>(failed) / static_cast<double>(done) : 1.0;
   const long long polls_failed = polls.sent - polls.received;
-  // A baseline without a failure bounds its rate by one in as many polls (the rule of one).
-  const double baseline_rate =
-      static_cast<double>(std::max(polls_failed, 1LL)) / static_cast<double>(polls.sent);
+  const double baseline_rate = poisson_upper_95(polls_failed) / static_cast<double>(polls.sent);
   const double lateness_max_us = l["lateness_us"].value("max", 0.0);
   const long long short_silences = after.short_silences - before.short_silences;
   std::printf(

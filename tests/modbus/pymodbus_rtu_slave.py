@@ -5,8 +5,9 @@ of this project's simulator: its own register map, its own plant, its own encode
   usage: pymodbus_rtu_slave.py DEVICE|socket:PORT [BAUD]
 
 DEVICE is a serial port (a pty); socket:PORT has pymodbus's serial server take its RTU frames from
-a TCP connection on PORT instead, as a device on the line would have them: without the kernel's
-tty layer (serial_line_emulator --slave-port connects there).
+TCP connections on PORT instead (0: a free port), as a device on the line would have them: without
+the kernel's tty layer (serial_line_emulator --slave-port connects there; each connection is a line
+of its own).
 
 Unit 17, holding registers (0-based protocol addresses; mbpoll's -r 1001 is address 1000):
   1000-1001  x            float32, high word first, m
@@ -19,12 +20,14 @@ Unit 17, holding registers (0-based protocol addresses; mbpoll's -r 1001 is addr
 The plant runs on the wall clock, advanced to the instant of each request: a first-order thermal
 element (Table I's lambda, Cth, R; ambient 25 degC) integrated exactly with the voltage held since
 the last write, and the actuator's length in its quasi-static equilibrium x = -alpha2 * Tbar / k.
-Prints "pymodbus rtu slave ready" once the port is open, and the requests it served on SIGTERM.
+Prints "pymodbus rtu slave ready" (with "on port N" for a socket) once it serves, and the requests
+it served on SIGTERM.
 """
 import asyncio
 import logging
 import math
 import signal
+import socket
 import struct
 import sys
 import time
@@ -103,7 +106,8 @@ async def serve(device, baud, plant):
                                           defer_start=True)
     await server.start()
     serving = asyncio.create_task(server.serve_forever())
-    print("pymodbus rtu slave ready", flush=True)
+    where = f" on port {device.rsplit(':', 1)[1]}" if device.startswith("socket:") else ""
+    print(f"pymodbus rtu slave ready{where}", flush=True)
     stop = asyncio.Event()
     loop = asyncio.get_running_loop()
     loop.add_signal_handler(signal.SIGTERM, stop.set)
@@ -114,8 +118,17 @@ async def serve(device, baud, plant):
     await server.shutdown()
 
 
+def free_port():
+    """A TCP port nothing listens on right now (bound and released)."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
 def main():
     device = sys.argv[1]
+    if device.startswith("socket:") and device.endswith(":0"):
+        device = f"{device[:-2]}:{free_port()}"
     baud = int(sys.argv[2]) if len(sys.argv) > 2 else 115200
     logging.basicConfig(level=logging.WARNING)
     asyncio.run(serve(device, baud, Plant()))
