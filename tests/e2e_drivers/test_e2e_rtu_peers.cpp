@@ -115,10 +115,6 @@ std::string shipped_rtu_yaml(const RunSetup& setup, const std::string& device, c
   m["rtu"]["device"] = device;
   m["unit_id"] = 17;
   m["response_timeout"] = run.timeout_s;
-  // As for the other real-time RTU runs (modbus_rtu_realtime_yaml): on a loaded machine the
-  // kernel's tty worker can hold a pty's bytes for several cycles; 8 failures in a row tolerated
-  // keep such a burst a count of failed transactions instead of a fault and a reconnection.
-  m["max_consecutive_failures"] = 8;
   // tests/modbus/pymodbus_rtu_slave.py's map: holding registers, the signals at 1000-1009 with
   // a status word nobody reads between ẋ and the read-back (one 10-register request), the
   // command in millivolts at 1100 (function 6).
