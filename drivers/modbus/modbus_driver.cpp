@@ -7,9 +7,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
-#include <ctime>
 #include <utility>
 
+#include "drivers/modbus/line_io.hpp"
 #include "drivers/modbus/register_codec.hpp"
 #include "drivers/modbus/timing.hpp"
 #include "drivers/modbus/wire_time.hpp"
@@ -57,12 +57,6 @@ std::string range_text(int first, int count) {
                     : std::to_string(first) + "-" + std::to_string(first + count - 1);
 }
 
-std::int64_t monotonic_ns() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
-
 bool is_link_error(int err) {
   switch (err) {
     case ECONNRESET:
@@ -105,6 +99,9 @@ ModbusDriver::Reasons ModbusDriver::make_reasons(const std::string& what, int ma
   r.why[kCrc] = what + ": CRC error in the reply (noise on the line, or wrong baud/parity)";
   r.why[kBadData] = what + ": invalid reply (wrong length, function code or frame)";
   r.why[kBadSlave] = what + ": reply from another unit id (check driver.modbus.unit_id)";
+  r.why[kLineBusy] = what +
+                     ": the line never fell silent before the request (a late reply still "
+                     "arriving, another master on the bus, or noise)";
   for (std::size_t i = 0; i < kReasonCount; ++i) {
     r.dropped[i] = r.why[i] + "; link dropped, reconnecting";
   }
@@ -121,6 +118,7 @@ std::size_t ModbusDriver::reason_index(int err) noexcept {
   if (err == EMBBADCRC) return kCrc;
   if (err == EMBBADDATA || err == EMBMDATA || err == EMBBADEXC || err == EMBUNKEXC) return kBadData;
   if (err == EMBBADSLAVE) return kBadSlave;
+  if (err == EBUSY) return kLineBusy;
   if (is_link_error(err)) return kLinkLost;
   return kOther;
 }
@@ -140,110 +138,32 @@ int ModbusDriver::write_function() const noexcept {
   return register_count(settings_.command.type) == 1 ? 6 : 16;
 }
 
-modbus_t* ModbusDriver::make_context(std::string& error) const {
-  modbus_t* ctx = nullptr;
-  if (settings_.transport == Transport::tcp) {
-    // _pi resolves host names and IPv6, unlike modbus_new_tcp.
-    ctx = modbus_new_tcp_pi(settings_.host.c_str(), std::to_string(settings_.port).c_str());
-  } else {
-    ctx = modbus_new_rtu(settings_.device.c_str(), settings_.baud, settings_.parity,
-                         settings_.data_bits, settings_.stop_bits);
-  }
-  if (ctx == nullptr) {
-    error = std::string("cannot create the libmodbus context: ") + modbus_strerror(errno);
-    return nullptr;
-  }
-  const double t = settings_.response_timeout_s;
-  const auto sec = static_cast<std::uint32_t>(t);
-  const auto usec = static_cast<std::uint32_t>(std::lround((t - sec) * 1e6));
-  // Byte timeout 0 disables it, so the response timeout bounds the whole reply: a trickling
-  // device cannot stretch one transaction beyond the budget check_timing() approved.
-  if (modbus_set_slave(ctx, settings_.unit_id) == -1 ||
-      modbus_set_response_timeout(ctx, sec, std::min<std::uint32_t>(usec, 999999)) == -1 ||
-      modbus_set_byte_timeout(ctx, 0, 0) == -1 ||
-      modbus_set_error_recovery(ctx, MODBUS_ERROR_RECOVERY_NONE) == -1) {
-    error = std::string("cannot configure the libmodbus context: ") + modbus_strerror(errno);
-    modbus_free(ctx);
-    return nullptr;
-  }
-  if (modbus_connect(ctx) == -1) {
-    const int err = errno;
-    error = modbus_strerror(err);
-    if (settings_.transport == Transport::rtu && (err == EACCES || err == EPERM)) {
-      error +=
-          " — add the daemon's user to the 'dialout' group (usermod -aG dialout USER, then "
-          "log in again) or fix the udev rule for " +
-          settings_.device;
-    } else if (settings_.transport == Transport::rtu && err == ENOENT) {
-      error +=
-          " — no such device; check driver.modbus.rtu.device (ls /dev/ttyUSB* /dev/serial/by-id)";
-    } else if (settings_.transport == Transport::tcp) {
-      error +=
-          " — check that the DAQ is powered and reachable and that driver.modbus.tcp.host/port "
-          "are right";
-    }
-    errno = err;
-    modbus_free(ctx);
-    return nullptr;
-  }
-  // Without the kernel's stamps the transactions' ends are the loop thread's clock readings
-  // (see transaction_end_ns): worse on a loaded machine, not wrong.
-  if (settings_.transport == Transport::tcp) enable_receive_stamps(modbus_get_socket(ctx));
-  return ctx;
+int ModbusDriver::write_command_registers(ModbusLink& link,
+                                          const std::uint16_t* registers) const noexcept {
+  return link.write_registers(write_function(), settings_.command.address,
+                              register_count(settings_.command.type), registers);
 }
 
-int ModbusDriver::read_block(modbus_t* ctx, TcpTransaction& tcp, const ReadBlock& b,
-                             std::uint16_t* regs) const noexcept {
-  const bool input = b.table == Table::input;
-  if (settings_.transport == Transport::tcp) {
-    std::array<std::uint8_t, TcpTransaction::kMaxPdu> request{};
-    std::array<std::uint8_t, TcpTransaction::kMaxPdu> reply{};
-    int reply_len = 0;
-    const int n = read_registers_pdu(input, b.address, b.count, request.data());
-    const int rc = tcp.transact(modbus_get_socket(ctx), settings_.unit_id, request.data(), n, reply,
-                                reply_len, settings_.response_timeout_s);
-    if (rc != 0) return rc;
-    return check_read_reply(input, b.count, reply.data(), reply_len, regs);
-  }
-  // RTU has no transaction id: a reply that came after its timeout is still in the input
-  // buffer. Discard it before asking, so it cannot be taken for the answer to this request.
-  modbus_flush(ctx);
-  const int rc = input ? modbus_read_input_registers(ctx, b.address, b.count, regs)
-                       : modbus_read_registers(ctx, b.address, b.count, regs);
-  if (rc == -1) return errno;
-  return rc == b.count ? 0 : EMBBADDATA;
-}
-
-int ModbusDriver::write_registers(modbus_t* ctx, TcpTransaction& tcp,
-                                  const std::uint16_t* regs) const noexcept {
-  const int n = register_count(settings_.command.type);
-  const int function = write_function();
-  if (settings_.transport == Transport::tcp) {
-    std::array<std::uint8_t, TcpTransaction::kMaxPdu> request{};
-    std::array<std::uint8_t, TcpTransaction::kMaxPdu> reply{};
-    int reply_len = 0;
-    const int len =
-        write_registers_pdu(function, settings_.command.address, n, regs, request.data());
-    const int rc = tcp.transact(modbus_get_socket(ctx), settings_.unit_id, request.data(), len,
-                                reply, reply_len, settings_.response_timeout_s);
-    if (rc != 0) return rc;
-    return check_write_reply(request.data(), len, reply.data(), reply_len);
-  }
-  modbus_flush(ctx);
-  const int rc = function == 6 ? modbus_write_register(ctx, settings_.command.address, regs[0])
-                               : modbus_write_registers(ctx, settings_.command.address, n, regs);
-  return rc == -1 ? errno : 0;
-}
-
-int ModbusDriver::write_zero(modbus_t* ctx, TcpTransaction& tcp) const noexcept {
+int ModbusDriver::write_zero(ModbusLink& link) const noexcept {
   std::array<std::uint16_t, 2> regs{};
   if (!encode_command(settings_.command, 0.0, regs.data())) return EINVAL;
-  return write_registers(ctx, tcp, regs.data());
+  return write_command_registers(link, regs.data());
 }
 
 void ModbusDriver::open() {
   if (opened_) return;
   if (settings_.enforce_period_budget) check_timing(settings_, period_s_);
+  prepare();
+  connect_first();
+  last_command_ = 0.0;
+  stop_.store(false);
+  // open()'s own attempt was the first when it failed.
+  const std::uint64_t attempts = stats_.link_up ? 0 : 1;
+  reconnector_ = std::thread([this, attempts] { reconnect_main(attempts); });
+  opened_ = true;
+}
+
+void ModbusDriver::prepare() {
   const int n = register_count(settings_.command.type);
   if (write_function() == 6 && n != 1) {
     throw DriverError(
@@ -261,6 +181,18 @@ void ModbusDriver::open() {
             range_text(block.address, block.count) + (input ? " (function 4)" : " (function 3)"),
         failures));
   }
+  write_reasons_ =
+      make_reasons(std::string("modbus: write holding register") + (n == 1 ? " " : "s ") +
+                       range_text(settings_.command.address, n) + " (function " +
+                       std::to_string(write_function()) + ")",
+                   failures);
+  heartbeat_reasons_ =
+      make_reasons("modbus: write watchdog heartbeat register " +
+                       std::to_string(settings_.watchdog_register) + " (function 6)",
+                   failures);
+  start_reason_ = "modbus: no answer from " + endpoint() +
+                  " since start; retrying with back-off (driver.modbus.reconnect), the daemon's "
+                  "log names the cause";
   // The sample's instant is that of the block holding x (the signal the mechanical block is most
   // sensitive to in time); with one block, as usual, of every signal.
   const SignalSlot x_slot = plan_.slots[static_cast<std::size_t>(SignalId::x)];
@@ -278,72 +210,71 @@ void ModbusDriver::open() {
   read_gate_.reset();
   write_gate_.reset();
   gap_ns_ = std::llround(kRtuFrameGapChars * char_time_s(settings_) * 1e9);
-  write_reasons_ =
-      make_reasons(std::string("modbus: write holding register") + (n == 1 ? " " : "s ") +
-                       range_text(settings_.command.address, n) + " (function " +
-                       std::to_string(write_function()) + ")",
-                   failures);
-  heartbeat_reasons_ =
-      make_reasons("modbus: write watchdog heartbeat register " +
-                       std::to_string(settings_.watchdog_register) + " (function 6)",
-                   failures);
-  start_reason_ = "modbus: no answer from " + endpoint() +
-                  " since start; retrying with back-off (driver.modbus.reconnect), the daemon's "
-                  "log names the cause";
+  // A cycle's I/O fits its period (check_timing() approved n x response_timeout within it); an
+  // offline run has no wall-clock period to fit.
+  cycle_budget_ns_ = settings_.enforce_period_budget ? std::llround(period_s_ * 1e9)
+                                                     : std::numeric_limits<std::int64_t>::max() / 2;
+}
 
+void ModbusDriver::connect_first() {
   stats_ = {};
   stats_.output_confirmed = false;  // nothing acknowledged yet
   stats_.link_up = false;
+  late_before_link_ = 0;
   std::string error;
-  ctx_ = make_context(error);
-  const int connect_err = ctx_ == nullptr ? errno : 0;
-  int err = 0;
-  if (ctx_ != nullptr) {
-    tcp_.reset();
-    err = write_zero(ctx_, tcp_);
-    if (err != 0) {
-      modbus_close(ctx_);
-      modbus_free(ctx_);
-      ctx_ = nullptr;
-    }
-  }
-  if (ctx_ == nullptr) {
-    const bool answered = err > MODBUS_ENOBASE && err <= EMBXGTAR;
-    if (err != 0) {
-      error = write_reasons_.why[reason_index(err)];
-      if (reason_index(err) == kOther) error += std::string(" / ") + modbus_strerror(err);
-    }
-    // What waiting cannot fix, or an offline run that has nobody to wait for: refuse now.
-    const bool permission =
-        settings_.transport == Transport::rtu && (connect_err == EACCES || connect_err == EPERM);
-    if (answered || permission || !settings_.enforce_period_budget) {
-      throw DriverError("modbus: cannot " + std::string(answered ? "write 0 V to " : "reach ") +
-                        endpoint() + " — " + error +
-                        (answered ? "; check driver.modbus.command.address and unit_id" : ""));
-    }
-    {
-      std::lock_guard lock(sleep_mutex_);
-      connect_error_ = "attempt 1: " + error;
-    }
-    down_reason_ = start_reason_.c_str();
-    link_wanted_.store(true);
-  } else {
+  link_ = ModbusLink::connect(settings_, error);
+  const int connect_err = link_ == nullptr ? errno : 0;
+  const int err = link_ == nullptr ? 0 : write_zero(*link_);
+  if (err == 0 && link_ != nullptr) {
     stats_.output_v = 0.0;
     stats_.output_confirmed = true;
     stats_.link_up = true;
     link_wanted_.store(false);
+    return;
   }
-  last_command_ = 0.0;
-  stop_.store(false);
-  // open()'s own attempt was the first when it failed.
-  const std::uint64_t attempts = stats_.link_up ? 0 : 1;
-  reconnector_ = std::thread([this, attempts] { reconnect_main(attempts); });
-  opened_ = true;
+  link_.reset();
+  const bool answered = err > MODBUS_ENOBASE && err <= EMBXGTAR;
+  if (err != 0) {
+    error = write_reasons_.why[reason_index(err)];
+    if (reason_index(err) == kOther) error += std::string(" / ") + modbus_strerror(err);
+  }
+  // What waiting cannot fix, or an offline run that has nobody to wait for: refuse now.
+  const bool permission =
+      settings_.transport == Transport::rtu && (connect_err == EACCES || connect_err == EPERM);
+  if (answered || permission || !settings_.enforce_period_budget) {
+    throw DriverError("modbus: cannot " + std::string(answered ? "write 0 V to " : "reach ") +
+                      endpoint() + " — " + error +
+                      (answered ? "; check driver.modbus.command.address and unit_id" : ""));
+  }
+  {
+    std::lock_guard lock(sleep_mutex_);
+    connect_error_ = "attempt 1: " + error;
+  }
+  down_reason_ = start_reason_.c_str();
+  link_wanted_.store(true);
 }
 
 std::string ModbusDriver::background_error() const {
   std::lock_guard lock(sleep_mutex_);
   return connect_error_;
+}
+
+std::unique_ptr<ModbusLink> ModbusDriver::try_link(std::string& error) const {
+  std::unique_ptr<ModbusLink> link = ModbusLink::connect(settings_, error);
+  if (link == nullptr) return nullptr;
+  // 0 V first: the DAQ may still hold the command from before the outage. Then a read proves the
+  // map answers before the loop is given the link.
+  std::array<std::uint16_t, kMaxRegistersPerRead> regs{};
+  int err = write_zero(*link);
+  const char* what = "writing 0 V";
+  if (err == 0 && !plan_.blocks.empty()) {
+    err = link->read_registers(plan_.blocks.front(), regs.data());
+    what = "the probe read";
+  }
+  if (err == 0) return link;
+  error = std::string("connected, but ") + what +
+          " failed: " + (err > MODBUS_ENOBASE ? modbus_strerror(err) : std::strerror(err));
+  return nullptr;
 }
 
 void ModbusDriver::reconnect_main(std::uint64_t attempts_so_far) {
@@ -353,44 +284,24 @@ void ModbusDriver::reconnect_main(std::uint64_t attempts_so_far) {
     sleep_cv_.wait_for(lock, std::chrono::duration<double>(seconds),
                        [this] { return stop_.load(); });
   };
-  std::array<std::uint16_t, kMaxRegistersPerRead> regs{};
   // Numbered so that the service logs each failed attempt once, even when the cause repeats.
   std::uint64_t attempt = attempts_so_far;
   while (!stop_.load()) {
-    if (modbus_t* dead = retired_.exchange(nullptr)) {
-      modbus_close(dead);
-      modbus_free(dead);
-    }
+    delete retired_.exchange(nullptr);  // a link the loop dropped
     if (!link_wanted_.load() || fresh_.load() != nullptr) {
       // Polled rather than signalled: the loop thread must not touch a condition variable.
       nap(0.002);
       continue;
     }
     std::string error;
-    modbus_t* ctx = make_context(error);
-    if (ctx != nullptr) {
-      // 0 V first: the DAQ may still hold the command from before the outage. Then a read
-      // proves the map answers before the loop is given the link.
-      TcpTransaction tcp;
-      int err = write_zero(ctx, tcp);
-      const char* what = "writing 0 V";
-      if (err == 0 && !plan_.blocks.empty()) {
-        err = read_block(ctx, tcp, plan_.blocks.front(), regs.data());
-        what = "the probe read";
-      }
-      if (err == 0) {
-        link_wanted_.store(false);
-        fresh_.store(ctx, std::memory_order_release);
-        backoff = settings_.reconnect_initial_s;
-        attempt = 0;
-        std::lock_guard lock(sleep_mutex_);
-        connect_error_.clear();
-        continue;
-      }
-      error = std::string("connected, but ") + what +
-              " failed: " + (err > MODBUS_ENOBASE ? modbus_strerror(err) : std::strerror(err));
-      modbus_close(ctx);
-      modbus_free(ctx);
+    if (std::unique_ptr<ModbusLink> link = try_link(error)) {
+      link_wanted_.store(false);
+      fresh_.store(link.release(), std::memory_order_release);
+      backoff = settings_.reconnect_initial_s;
+      attempt = 0;
+      std::lock_guard lock(sleep_mutex_);
+      connect_error_.clear();
+      continue;
     }
     {
       std::lock_guard lock(sleep_mutex_);
@@ -402,11 +313,11 @@ void ModbusDriver::reconnect_main(std::uint64_t attempts_so_far) {
 }
 
 void ModbusDriver::adopt_fresh_link() noexcept {
-  if (ctx_ != nullptr) return;
-  modbus_t* ctx = fresh_.exchange(nullptr, std::memory_order_acq_rel);
-  if (ctx == nullptr) return;
-  ctx_ = ctx;
-  tcp_.reset();
+  if (link_ != nullptr) return;
+  ModbusLink* link = fresh_.exchange(nullptr, std::memory_order_acq_rel);
+  if (link == nullptr) return;
+  link_.reset(link);  // link_ was empty: nothing is freed here
+  late_before_link_ = stats_.late_replies;
   doomed_ = false;
   if (opened_) ++stats_.reconnects;
   stats_.link_up = true;
@@ -419,22 +330,19 @@ void ModbusDriver::adopt_fresh_link() noexcept {
 }
 
 void ModbusDriver::doom_link(const char* reason) noexcept {
-  if (ctx_ == nullptr) return;
+  if (link_ == nullptr) return;
   doomed_ = true;
   down_reason_ = reason;
   stats_.link_up = false;
 }
 
 void ModbusDriver::drop_link() noexcept {
-  if (ctx_ == nullptr) return;
-  // The reconnect thread frees it; a context is never used by two threads.
-  modbus_t* previous = retired_.exchange(ctx_, std::memory_order_acq_rel);
-  if (previous != nullptr) {
-    // Cannot happen (the thread frees each retired context before publishing a new one), but
-    // never leak or double-use one: keep the newer, close the older's socket only.
-    modbus_close(previous);
-  }
-  ctx_ = nullptr;
+  if (link_ == nullptr) return;
+  // The reconnect thread destroys it; a link is never used by two threads.
+  ModbusLink* previous = retired_.exchange(link_.release(), std::memory_order_acq_rel);
+  // Cannot happen (the thread destroys each retired link before publishing a new one); were it
+  // to, destroying it here beats leaking its descriptor.
+  delete previous;
   doomed_ = false;
   stats_.link_up = false;
   link_wanted_.store(true, std::memory_order_release);
@@ -458,8 +366,11 @@ const char* ModbusDriver::transaction_failed(const Reasons& reasons, int err) no
     doom_link(reasons.dropped[index].c_str());
     return reasons.dropped[index].c_str();
   }
-  if (index == kTimeout) {
-    // A streak of timeouts is a lost link (cable pulled, device rebooted): reconnect.
+  if (index == kTimeout && settings_.transport == Transport::tcp) {
+    // A streak of timeouts over TCP is a lost connection (cable pulled, device rebooted, a
+    // half-open socket): reconnect. A serial port does not get better for being reopened: the
+    // next cycles keep asking (the loop faults and commands 0 V meanwhile), and a port that is
+    // gone fails with its own errors (EIO, ENODEV), which drop the link.
     if (++timeout_streak_ > settings_.max_consecutive_failures) {
       doom_link(reasons.dropped[index].c_str());
       return reasons.dropped[index].c_str();
@@ -476,26 +387,31 @@ IoResult ModbusDriver::tolerate(int& streak, const char* reason) noexcept {
 
 IoResult ModbusDriver::read(const CycleTime& now, Sample& out) noexcept {
   adopt_fresh_link();
-  if (ctx_ == nullptr || doomed_) {
+  if (link_ == nullptr || doomed_) {
     ++stats_.read_errors;
     return tolerate(read_streak_, down_reason_[0] ? down_reason_ : kLinkDown);
   }
   deadline_ns_ = now.deadline_ns;
   deadline_t_ = now.t;
+  // The cycle's transactions share one period: each waits for its reply at most the response
+  // timeout, a slow one leaves the others less, and together they never take longer than a
+  // period. Counted from now, not from the deadline, so that a cycle that woke late still gets
+  // its whole share.
+  link_->limit_until(monotonic_ns() + cycle_budget_ns_);
   std::int64_t sampled_ns = 0;  // midpoint of the transaction that read x
   for (std::size_t i = 0; i < plan_.blocks.size(); ++i) {
-    const std::int64_t begin_ns = stamping() ? monotonic_ns() : 0;
-    const int err = read_block(ctx_, tcp_, plan_.blocks[i], buffers_[i].data());
+    const std::int64_t called_ns = stamping() ? monotonic_ns() : 0;
+    const int err = link_->read_registers(plan_.blocks[i], buffers_[i].data());
     if (stamping()) {
       // Only the x block's successful reads teach the gate the usual read; the others only
       // occupy the line.
       if (i == x_block_ && err == 0) {
-        sampled_ns = transaction_stamp(begin_ns, read_gate_);
+        sampled_ns = transaction_stamp(called_ns, read_gate_);
       } else {
         mark_line_busy(monotonic_ns());
       }
     }
-    stats_.late_replies = tcp_.late_replies();
+    stats_.late_replies = late_before_link_ + link_->late_replies();
     if (err != 0) {
       ++stats_.read_errors;
       return tolerate(read_streak_, transaction_failed(read_reasons_[i], err));
@@ -527,26 +443,11 @@ IoResult ModbusDriver::read(const CycleTime& now, Sample& out) noexcept {
 }
 
 void ModbusDriver::feed_watchdog() noexcept {
-  if (settings_.watchdog_register < 0 || ctx_ == nullptr || doomed_) return;
+  if (settings_.watchdog_register < 0 || link_ == nullptr || doomed_) return;
   if (++heartbeat_cycle_ < settings_.watchdog_every) return;
   heartbeat_cycle_ = 0;
   heartbeat_value_ ^= 1u;
-  int err = 0;
-  if (settings_.transport == Transport::tcp) {
-    std::array<std::uint8_t, TcpTransaction::kMaxPdu> request{};
-    std::array<std::uint8_t, TcpTransaction::kMaxPdu> reply{};
-    int reply_len = 0;
-    const int len =
-        write_registers_pdu(6, settings_.watchdog_register, 1, &heartbeat_value_, request.data());
-    err = tcp_.transact(modbus_get_socket(ctx_), settings_.unit_id, request.data(), len, reply,
-                        reply_len, settings_.response_timeout_s);
-    if (err == 0) err = check_write_reply(request.data(), len, reply.data(), reply_len);
-  } else {
-    modbus_flush(ctx_);
-    if (modbus_write_register(ctx_, settings_.watchdog_register, heartbeat_value_) == -1) {
-      err = errno;
-    }
-  }
+  const int err = link_->write_registers(6, settings_.watchdog_register, 1, &heartbeat_value_);
   if (err != 0) {
     ++stats_.write_errors;
     transaction_failed(heartbeat_reasons_, err);
@@ -559,12 +460,12 @@ bool ModbusDriver::write_command(double volts, int& err) noexcept {
     err = EINVAL;
     return false;
   }
-  const std::int64_t begin_ns = stamping() ? monotonic_ns() : 0;
-  err = write_registers(ctx_, tcp_, regs.data());
-  stats_.late_replies = tcp_.late_replies();
+  const std::int64_t called_ns = stamping() ? monotonic_ns() : 0;
+  err = write_command_registers(*link_, regs.data());
+  stats_.late_replies = late_before_link_ + link_->late_replies();
   if (err != 0) {
     if (stamping()) {
-      const std::int64_t end_ns = monotonic_ns();
+      const Span span = last_span(called_ns);
       if (err == ETIMEDOUT) {
         // The device may have applied it all the same (its reply was late, or lost), and the
         // read-back voltage of the next sample will then be the new one: take it to have landed
@@ -572,17 +473,16 @@ bool ModbusDriver::write_command(double volts, int& err) noexcept {
         // one and the instant is moot (V² the same on both sides). Keeping the last write's
         // instant instead would have the new voltage act over the whole interval.
         voltage_since_ =
-            loop_time(write_gate_.guess(line_begin_ns(begin_ns, end_ns), end_ns, deadline_ns_)) +
-            write_event_s_;
+            loop_time(write_gate_.guess(span.begin_ns, span.end_ns, deadline_ns_)) + write_event_s_;
       }
-      mark_line_busy(end_ns);
+      mark_line_busy(span.end_ns);
     }
     // Timed out or refused: the device may hold the new value or the old one.
     stats_.output_confirmed = false;
     return false;
   }
   if (stamping()) {
-    voltage_since_ = loop_time(transaction_stamp(begin_ns, write_gate_)) + write_event_s_;
+    voltage_since_ = loop_time(transaction_stamp(called_ns, write_gate_)) + write_event_s_;
   }
   stats_.output_v = volts;
   stats_.output_confirmed = true;
@@ -593,13 +493,12 @@ void ModbusDriver::mark_line_busy(std::int64_t end_ns) noexcept {
   line_free_ns_ = end_ns + gap_ns_;
 }
 
-std::int64_t ModbusDriver::transaction_end_ns(std::int64_t begin_ns) const noexcept {
-  const std::int64_t now = monotonic_ns();
-  if (settings_.transport != Transport::tcp) return now;
-  // When the kernel received the reply, if it says so and the stamp is plausible (not before
-  // the request was sent: bytes buffered earlier; not after now: a clock step).
-  const std::int64_t received = tcp_.reply_received_ns();
-  return received > begin_ns && received <= now ? received : now;
+ModbusDriver::Span ModbusDriver::last_span(std::int64_t called_ns) const noexcept {
+  const std::int64_t sent = link_->request_sent_ns();
+  const std::int64_t received = link_->reply_received_ns();
+  const std::int64_t begin_ns = sent > 0 ? sent : called_ns;
+  const std::int64_t end_ns = received >= begin_ns ? received : monotonic_ns();
+  return {line_begin_ns(begin_ns, end_ns), end_ns};
 }
 
 std::int64_t ModbusDriver::line_begin_ns(std::int64_t begin_ns,
@@ -607,11 +506,10 @@ std::int64_t ModbusDriver::line_begin_ns(std::int64_t begin_ns,
   return std::max(begin_ns, std::min(line_free_ns_, end_ns));
 }
 
-std::int64_t ModbusDriver::transaction_stamp(std::int64_t begin_ns, StampGate& gate) noexcept {
-  const std::int64_t end_ns = transaction_end_ns(begin_ns);
-  begin_ns = line_begin_ns(begin_ns, end_ns);
-  mark_line_busy(end_ns);
-  const StampGate::Stamp stamp = gate.judge(begin_ns, end_ns, deadline_ns_);
+std::int64_t ModbusDriver::transaction_stamp(std::int64_t called_ns, StampGate& gate) noexcept {
+  const Span span = last_span(called_ns);
+  mark_line_busy(span.end_ns);
+  const StampGate::Stamp stamp = gate.judge(span.begin_ns, span.end_ns, deadline_ns_);
   if (stamp.stretched) ++stats_.stretched_stamps;
   return stamp.midpoint_ns;
 }
@@ -629,7 +527,7 @@ IoResult ModbusDriver::write_voltage(double volts) noexcept {
     return IoResult::fail(std::isfinite(volts) ? kOutOfRange : kNotFinite);
   }
   if (need_fresh_reading_ || doomed_) volts = 0.0;
-  if (ctx_ == nullptr) {
+  if (link_ == nullptr) {
     if (stats_.output_v != 0.0) stats_.output_confirmed = false;
     ++stats_.write_errors;
     return tolerate(write_streak_, down_reason_[0] ? down_reason_ : kLinkDown);
@@ -655,7 +553,7 @@ IoResult ModbusDriver::write_voltage(double volts) noexcept {
 
 void ModbusDriver::safe_state() noexcept {
   adopt_fresh_link();
-  if (ctx_ == nullptr) {
+  if (link_ == nullptr) {
     // Nothing reachable: the DAQ holds what it last acknowledged; its own watchdog is the last
     // line (docs/driver-modbus.md).
     if (stats_.output_v != 0.0) stats_.output_confirmed = false;
@@ -686,14 +584,12 @@ void ModbusDriver::close() noexcept {
     sleep_cv_.notify_all();
     reconnector_.join();
   }
+  // Past the loop's cycles: the last 0 V gets a whole response timeout.
+  if (link_ != nullptr) link_->limit_until(std::numeric_limits<std::int64_t>::max());
   if (opened_) safe_state();
-  for (modbus_t* ctx : {ctx_, fresh_.exchange(nullptr), retired_.exchange(nullptr)}) {
-    if (ctx != nullptr) {
-      modbus_close(ctx);
-      modbus_free(ctx);
-    }
-  }
-  ctx_ = nullptr;
+  link_.reset();
+  delete fresh_.exchange(nullptr);
+  delete retired_.exchange(nullptr);
   doomed_ = false;
   stats_.link_up = false;
   opened_ = false;

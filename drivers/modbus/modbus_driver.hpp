@@ -1,29 +1,28 @@
 #pragma once
 // A DAQ speaking Modbus TCP or RTU (libmodbus) behind the driver contract.
 //
-// Threads: the loop thread alone uses the active libmodbus context in read/write/safe_state. A
-// lost link is handed to a reconnect thread owned by the driver, which closes the dead context,
-// opens a new one with exponential back-off (modbus_connect, a probe read) and publishes it
-// through an atomic pointer; the loop adopts it at its next call. The loop never connects, never
-// sleeps and never takes a lock the reconnect thread holds.
+// Threads: the loop thread alone uses the active link (modbus_link.hpp) in read/write/safe_state.
+// A lost link is handed to a reconnect thread owned by the driver, which destroys the dead link,
+// opens a new one with exponential back-off (connect, 0 V, a probe read) and publishes it through
+// an atomic pointer; the loop adopts it at its next call. The loop never connects, never sleeps
+// and never takes a lock the reconnect thread holds.
 
 #include <array>
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "drivers/driver.hpp"
+#include "drivers/modbus/modbus_link.hpp"
 #include "drivers/modbus/modbus_settings.hpp"
 #include "drivers/modbus/read_plan.hpp"
 #include "drivers/modbus/stamp_gate.hpp"
-#include "drivers/modbus/tcp_transaction.hpp"
-
-struct _modbus;  // libmodbus' modbus_t, kept out of this header
 
 namespace scp::drivers::modbus {
 
@@ -69,7 +68,8 @@ class ModbusDriver final : public Driver {
     kCrc = 14,
     kBadData = 15,
     kBadSlave = 16,
-    kReasonCount = 17
+    kLineBusy = 17,
+    kReasonCount = 18
   };
   struct Reasons {
     std::array<std::string, kReasonCount> why;
@@ -78,14 +78,16 @@ class ModbusDriver final : public Driver {
   static Reasons make_reasons(const std::string& what, int max_failures);
   static std::size_t reason_index(int err) noexcept;
 
-  _modbus* make_context(std::string& error) const;
-  // One transaction on `ctx` (any thread; touches no loop state). 0 or an errno-style code.
-  int read_block(_modbus* ctx, TcpTransaction& tcp, const ReadBlock& block,
-                 std::uint16_t* registers) const noexcept;
-  int write_registers(_modbus* ctx, TcpTransaction& tcp,
-                      const std::uint16_t* registers) const noexcept;
-  int write_zero(_modbus* ctx, TcpTransaction& tcp) const noexcept;
+  // open()'s halves: what the settings decide (plan, reasons, wire model), then the first link.
+  void prepare();
+  void connect_first();
+  // The command registers' write on `link` (any thread; touches no loop state): 0 or an
+  // errno-style code.
+  int write_command_registers(ModbusLink& link, const std::uint16_t* registers) const noexcept;
+  int write_zero(ModbusLink& link) const noexcept;
   void reconnect_main(std::uint64_t attempts_so_far);
+  // One reconnection attempt: a link with 0 V written and a probe read done, or nullptr and why.
+  std::unique_ptr<ModbusLink> try_link(std::string& error) const;
   void adopt_fresh_link() noexcept;
   // A failure that makes the link untrustworthy: the next write-type call tries 0 V on it, then
   // hands it to the reconnect thread (drop_link).
@@ -116,10 +118,10 @@ class ModbusDriver final : public Driver {
   std::string start_reason_;  // link never up yet
 
   // Loop thread only.
-  _modbus* ctx_ = nullptr;
-  TcpTransaction tcp_;
-  bool doomed_ = false;           // ctx_ failed in a way that costs the link (see doom_link)
-  const char* down_reason_ = "";  // why there is no link, for the fault reason
+  std::unique_ptr<ModbusLink> link_;
+  std::uint64_t late_before_link_ = 0;  // late replies counted on the links before link_
+  bool doomed_ = false;                 // link_ failed in a way that costs the link (see doom_link)
+  const char* down_reason_ = "";        // why there is no link, for the fault reason
   int read_streak_ = 0;
   int write_streak_ = 0;
   int timeout_streak_ = 0;
@@ -133,35 +135,36 @@ class ModbusDriver final : public Driver {
   double read_event_s_ = 0.0;   // sample instant − read midpoint, input latency included
   double write_event_s_ = 0.0;  // command effect − write midpoint, output latency included
   double voltage_since_ = -std::numeric_limits<double>::infinity();
-  // RTU: when the last transaction's reply was complete. A request sent sooner than 3.5
-  // characters after it waits on the line (libmodbus does not wait), so the slave sees it start
-  // then, not when the driver sent it.
+  // A TCP-to-RTU gateway's line (timing.serial_line): when the last transaction's reply was
+  // complete. A request sent sooner than 3.5 characters after it waits on the gateway's line, so
+  // the slave sees it start then, not when the driver sent it. (On an RTU port the driver keeps
+  // that silence itself before sending: ModbusLink.)
   std::int64_t line_free_ns_ = 0;
   std::int64_t gap_ns_ = 0;
-  // The stamp of a transaction that began at begin_ns and ends now: its midpoint (from when the
-  // line saw it begin to when its reply was received), or the gate's estimate when the
-  // transaction took far longer than usual (counted in stats_.stretched_stamps), for reads and
-  // writes alike. (Writes used to keep their midpoint: measured against scp-simdaq's event
-  // times, a write's stretch came as often before the device acted as after. That was the loop
-  // thread's own wake-up after the reply and the emulator's after the request; with both taken
-  // from the kernel's receive stamps, what stretches is the reply, after the device acted:
-  // measured under stress -c 2 -i 1, stretched writes off by 0.3 ms median, 3.3 ms worst, with
-  // their midpoints.)
-  std::int64_t transaction_stamp(std::int64_t begin_ns, StampGate& gate) noexcept;
+  std::int64_t cycle_budget_ns_ = 0;  // what a cycle's transactions share: the loop period
+  // The last transaction's bounds on the line: from when its request left (the link's clock,
+  // or `called_ns` if it never did) to when its reply arrived (the link's, or now), the begin
+  // moved to when a gateway's line could carry it.
+  struct Span {
+    std::int64_t begin_ns;
+    std::int64_t end_ns;
+  };
+  Span last_span(std::int64_t called_ns) const noexcept;
+  // The stamp of the transaction just made: its span's midpoint, or the gate's estimate when
+  // it took far longer than usual (counted in stats_.stretched_stamps), for reads and writes
+  // alike: with the replies' kernel stamps, what stretches is the reply, after the device acted.
+  std::int64_t transaction_stamp(std::int64_t called_ns, StampGate& gate) noexcept;
   void mark_line_busy(std::int64_t end_ns) noexcept;
   // When the line saw a request sent at begin_ns start: not before the previous frame's gap.
   std::int64_t line_begin_ns(std::int64_t begin_ns, std::int64_t end_ns) const noexcept;
-  // The end of the transaction that began at begin_ns: over TCP when the kernel received its
-  // reply (TcpTransaction::reply_received_ns), otherwise now.
-  std::int64_t transaction_end_ns(std::int64_t begin_ns) const noexcept;
   StampGate read_gate_;
   StampGate write_gate_;
   DriverStats stats_;
   bool opened_ = false;
 
-  // Hand-over between the loop thread and the reconnect thread.
-  std::atomic<_modbus*> fresh_{nullptr};    // connected, 0 V written and probed, for the loop
-  std::atomic<_modbus*> retired_{nullptr};  // dropped by the loop, for the thread to free
+  // Hand-over between the loop thread and the reconnect thread (owning pointers).
+  std::atomic<ModbusLink*> fresh_{nullptr};    // connected, 0 V written and probed, for the loop
+  std::atomic<ModbusLink*> retired_{nullptr};  // dropped by the loop, for the thread to destroy
   std::atomic<bool> link_wanted_{false};
   std::atomic<bool> stop_{false};
   mutable std::mutex sleep_mutex_;  // reconnect thread and non-real-time callers only

@@ -71,9 +71,12 @@ struct ModbusSettings {
   // An offline (lock-step) run has no wall-clock deadline: a late reply there is load on the
   // machine, not a dead DAQ. scp-estimatord --offline uses this timeout and skips check_timing().
   double offline_response_timeout_s = 1.0;
-  bool enforce_period_budget = true;  // false only for offline runs
-  int max_consecutive_failures = 3;   // failed transactions tolerated in a row
-  double reconnect_initial_s = 0.1;   // back-off of the reconnect thread, doubled per attempt
+  // false only for offline (lock-step) runs: no period budget to check, and no inter-frame
+  // silence kept on an RTU line (the lock-step simulator takes frames by their length, and a
+  // silence in each of a run's many steps would only slow a run that has no wall clock).
+  bool enforce_period_budget = true;
+  int max_consecutive_failures = 3;  // failed transactions tolerated in a row
+  double reconnect_initial_s = 0.1;  // back-off of the reconnect thread, doubled per attempt
   double reconnect_max_s = 5.0;
   int max_read_gap = 8;  // registers read and discarded to merge two signals into one request
   // Feeding the DAQ's communication watchdog (docs/driver-modbus.md): every watchdog_every

@@ -5,11 +5,9 @@
 // transaction took its usual time. On a loaded machine the loop thread is preempted between its
 // clock reading and the request leaving, or the reply waits in the socket until the thread runs
 // again (or the device answers late): the transaction stretches by milliseconds and its midpoint
-// moves by half the stretch, whereas the device's event stays where it was. Measured against
-// scp-simdaq's own event times (tests/e2e_drivers/test_e2e_link_timing.cpp's bench): transactions
-// within 0.3 ms of the usual duration were stamped within 51 µs on average, the 3 % beyond it
-// were off by 470 µs on average and up to 12 ms, and those few outliers are what made the
-// stamped thermal estimates worse than the loop's deadlines under load.
+// moves by half the stretch, whereas the device's event stays where it was. Those few stretched
+// transactions, not the many ordinary ones, made stamped thermal estimates worse than the loop's
+// deadlines under load (docs/driver-modbus.md, "Time", has the measurement).
 //
 // The gate learns the usual duration as the median of the last kWindow transactions (robust to
 // the outliers it is there to catch, and following a line that became slower for good), and the
@@ -32,9 +30,9 @@ class StampGate {
   static constexpr std::size_t kWindow = 64;
   // Fewer accepted transactions than this: nothing to compare with, every stamp is taken.
   static constexpr std::size_t kWarmUp = 16;
-  // The smallest stretch called one: 0.3 ms, three times the 0.1 ms scale the stamps are about
-  // and above a loaded machine's ordinary scheduling jitter (measured p90 − p50 of the bench's
-  // read duration: 0.15 ms); or 10 % of the usual duration on a slow line.
+  // The smallest stretch called one: three times the 0.1 ms scale the stamps are about, and
+  // above a loaded machine's ordinary scheduling jitter (docs/driver-modbus.md, "Time"); or 10 %
+  // of the usual duration on a slow line.
   static constexpr std::int64_t kMinToleranceNs = 300'000;
 
   struct Stamp {

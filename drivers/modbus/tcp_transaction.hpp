@@ -11,6 +11,9 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
+
+#include "drivers/modbus/pdu.hpp"
 
 namespace scp::drivers::modbus {
 
@@ -18,22 +21,24 @@ class TcpTransaction {
  public:
   // Largest Modbus TCP frame: 7-byte MBAP header + 253-byte PDU.
   static constexpr int kMaxFrame = 260;
-  static constexpr int kMaxPdu = 253;
+  static constexpr int kMaxPdu = modbus::kMaxPdu;
 
   // A new connection: forget bytes buffered from the old one.
   void reset() noexcept {
     rx_len_ = 0;
-    last_recv_ns_ = reply_ns_ = 0;
+    last_recv_ns_ = reply_ns_ = sent_ns_ = 0;
   }
 
-  // Sends `pdu` (function code and data) to `unit` on `fd` and waits at most `timeout_s` for the
-  // reply carrying the same transaction id. Returns 0 with the reply's PDU in `reply` (its
-  // length in `reply_len`), or an errno-style code: ETIMEDOUT (no reply in time), EMBBADDATA
+  // Sends `pdu` (function code and data) to `unit` on `fd` and waits at most `timeout_s`, and
+  // not past `not_after_ns` (CLOCK_MONOTONIC: the caller's budget for a cycle of transactions),
+  // for the reply carrying the same transaction id. Returns 0 with the reply's PDU in `reply`
+  // (its length in `reply_len`), or an errno-style code: ETIMEDOUT (no reply in time), EMBBADDATA
   // (bytes that are no Modbus TCP frame, or a reply from another unit: the stream cannot be
   // trusted), ECONNRESET (the peer closed), or the errno of send/recv. Exception replies are
   // returned as replies; the caller decodes them.
   int transact(int fd, int unit, const std::uint8_t* pdu, int pdu_len,
-               std::array<std::uint8_t, kMaxPdu>& reply, int& reply_len, double timeout_s) noexcept;
+               std::array<std::uint8_t, kMaxPdu>& reply, int& reply_len, double timeout_s,
+               std::int64_t not_after_ns = std::numeric_limits<std::int64_t>::max()) noexcept;
 
   // Replies that arrived after their transaction had given up on them.
   std::uint64_t late_replies() const noexcept { return late_; }
@@ -44,8 +49,14 @@ class TcpTransaction {
   // arrived; the kernel stamps the segment when it arrives (on loopback: when the peer sent it),
   // so the transaction's end is not moved by the thread's own wake-up latency (issue 9).
   std::int64_t reply_received_ns() const noexcept { return reply_ns_; }
+  // CLOCK_MONOTONIC ns just before the last transaction's request was sent.
+  std::int64_t request_sent_ns() const noexcept { return sent_ns_; }
 
  private:
+  int send_frame(int fd, int unit, std::uint16_t tid, const std::uint8_t* pdu,
+                 int pdu_len) noexcept;
+  // Reads what the socket holds, with the kernel's receive stamp: 0 or an errno-style code.
+  int receive(int fd) noexcept;
   // Takes one whole frame off the buffer if there is one: 1 = frame, 0 = need more bytes,
   // -1 = garbage.
   int take_frame(std::uint16_t& tid, int& unit, std::array<std::uint8_t, kMaxPdu>& pdu,
@@ -57,21 +68,11 @@ class TcpTransaction {
   std::uint64_t late_ = 0;
   std::int64_t last_recv_ns_ = 0;  // kernel stamp of the latest bytes read, 0 if none
   std::int64_t reply_ns_ = 0;
+  std::int64_t sent_ns_ = 0;
 };
 
 // Asks the kernel to stamp every segment `fd` receives (SO_TIMESTAMPNS). False if it refused:
 // TcpTransaction then reports no reception times and the driver uses its own clock.
 bool enable_receive_stamps(int fd) noexcept;
-
-// Protocol data units of the requests the driver sends, and the checks of their replies. Each
-// check returns 0, MODBUS_ENOBASE + exception code for an exception reply, or EMBBADDATA.
-int read_registers_pdu(bool input_table, int address, int count, std::uint8_t* pdu) noexcept;
-int check_read_reply(bool input_table, int count, const std::uint8_t* reply, int reply_len,
-                     std::uint16_t* registers) noexcept;
-// Function 6 (one register) or 16 (`count` registers).
-int write_registers_pdu(int function, int address, int count, const std::uint16_t* values,
-                        std::uint8_t* pdu) noexcept;
-int check_write_reply(const std::uint8_t* request, int request_len, const std::uint8_t* reply,
-                      int reply_len) noexcept;
 
 }  // namespace scp::drivers::modbus

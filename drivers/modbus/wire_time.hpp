@@ -8,8 +8,8 @@
 // for t3.5 (3.5 characters), then sends its reply. With a request of R characters and a reply of
 // Q, the master's transaction lasts R + 3.5 + Q characters and the event comes R + 3.5 after its
 // start: (R + 3.5 − Q)/2 characters after the midpoint. A read's reply is long (the registers),
-// so its sample is ~0.45 ms before the midpoint at 115200 Bd; a write's request is the long one,
-// so its command lands ~0.4 ms after. Over TCP the frames take microseconds: the midpoint.
+// so its sample comes before the midpoint; a write's request is the long one, so its command
+// lands after it. Over TCP the frames take microseconds: the midpoint.
 // What the model cannot know (a slave's own turnaround, its ADC's age, its DAC's update cycle) is
 // the configured driver.modbus.timing.input_latency / output_latency (docs/driver-modbus.md).
 
