@@ -10,7 +10,7 @@
 // consistent, and (JᵀWJ)⁻¹ is its Cramér–Rao covariance. See docs/numerics.md.
 //
 // A pure library: no threads, no clock, no I/O, no logging. The daemon owns the worker thread that
-// hands it a window (daemon/refine/).
+// hands it a window (daemon/analysis/refine/).
 
 #include <Eigen/Core>
 #include <array>
