@@ -1,50 +1,15 @@
-// Normal and χ² tails: the incomplete gamma by its power series below a + 1 and by Lentz's
-// continued fraction above (each converges fast where the other is slow), quantiles by
-// bisection on the logarithm of the tail, which stays well conditioned at 1e-12.
+// Normal and χ² tails (the χ² tail is refine's incomplete gamma: one implementation), quantiles
+// by bisection on the logarithm of the tail, which stays well conditioned at 1e-12.
 #include "health/distributions.hpp"
 
 #include <cmath>
 #include <numbers>
 
+#include "refine/probability.hpp"
+
 namespace scp::health {
 
 namespace {
-
-// P(a, x) by the series e^{−x} x^a / Γ(a+1) · Σ x^n / ((a+1)…(a+n)), for x < a + 1.
-double lower_gamma_series(double a, double x) noexcept {
-  double term = 1.0 / a, sum = term;
-  for (int n = 1; n < 1000; ++n) {
-    term *= x / (a + n);
-    sum += term;
-    if (std::abs(term) < std::abs(sum) * 1e-16) break;
-  }
-  return sum * std::exp(-x + a * std::log(x) - std::lgamma(a));
-}
-
-// Q(a, x) by the continued fraction of Γ(a, x), modified Lentz, for x ≥ a + 1.
-double upper_gamma_fraction(double a, double x) noexcept {
-  constexpr double tiny = 1e-300;
-  double b = x + 1.0 - a, c = 1.0 / tiny, d = 1.0 / b, h = d;
-  for (int i = 1; i < 1000; ++i) {
-    const double an = -i * (i - a);
-    b += 2.0;
-    d = an * d + b;
-    if (std::abs(d) < tiny) d = tiny;
-    c = b + an / c;
-    if (std::abs(c) < tiny) c = tiny;
-    d = 1.0 / d;
-    const double delta = d * c;
-    h *= delta;
-    if (std::abs(delta - 1.0) < 1e-16) break;
-  }
-  return std::exp(-x + a * std::log(x) - std::lgamma(a)) * h;
-}
-
-double regularized_upper_gamma(double a, double x) noexcept {
-  if (!(x > 0.0)) return 1.0;
-  if (x < a + 1.0) return 1.0 - lower_gamma_series(a, x);
-  return upper_gamma_fraction(a, x);
-}
 
 // The x in [lo, hi] where log tail(x) = log target, tail decreasing.
 template <typename Tail>
@@ -86,7 +51,7 @@ double chi_square_density(double x, int dof) noexcept {
 
 double chi_square_upper_tail(double x, int dof) noexcept {
   if (dof < 1) return std::nan("");
-  return regularized_upper_gamma(0.5 * dof, 0.5 * x);
+  return refine::chi_square_survival(x, dof);
 }
 
 double chi_square_upper_quantile(double probability, int dof) noexcept {
