@@ -18,8 +18,11 @@
 #include <cstddef>
 #include <span>
 
+#include "estimator/estimator.hpp"
 #include "estimator/types.hpp"
+#include "refine/fit_terms.hpp"
 #include "refine/stop_reason.hpp"
+#include "refine/validation.hpp"
 
 namespace scp::refine {
 
@@ -94,6 +97,18 @@ struct FitSettings {
   // jitter as the samples', and the fit filters the state for the error they put into T̄ and,
   // through it, into x (PassSettings::landing_jitter, refine/landing_filter.hpp).
   bool landing_timing_jitter = false;
+  // How the voltage varied between samples: held by a DAC (zoh: V² constant over each piece) or
+  // continuous (foh: V linear between samples, V² quadratic).
+  estimator::VoltageHold voltage_hold = estimator::VoltageHold::zoh;
+  // Which interval a row's voltage belongs to (refine/fit_terms.hpp).
+  VoltageInterval voltage_interval = VoltageInterval::before;
+  // The nuisance terms of a real bench, each estimated unless fixed (refine/fit_terms.hpp).
+  NuisanceSettings nuisance;
+  // The model's extensions (refine/fit_terms.hpp), off unless asked for.
+  ExtensionSettings extensions;
+  // The sensors' white-noise standard deviations (x in m, T̄ in °C) for the validation's
+  // noise-ratio tests; ≤ 0: not declared.
+  Vector2 declared_noise = Vector2::Zero();
 };
 
 // √χ²₂(0.99): the radius within which 99 % of a two-channel Gaussian residual falls.
@@ -142,6 +157,15 @@ struct FitResult {
   // FitSettings::outlier_threshold: the samples the final pass down-weighted. The covariance is
   // the sandwich of the weighted fit, so what they still contribute is counted in σ.
   std::size_t outliers = 0;
+  // The voltage interval the fit used: FitSettings::voltage_interval, or the one `estimate` chose
+  // (before or after).
+  VoltageInterval voltage_interval = VoltageInterval::before;
+  // The nuisance terms and extensions as the fit left them (refine/fit_terms.hpp).
+  Nuisance nuisance;
+  Extensions extensions;
+  // The model validation of the final pass (refine/validation.hpp); `validated` once it ran.
+  ValidationReport validation;
+  bool validated = false;
 };
 
 // Fits θ, the initial state and the noise variances to `window` (at least 3 samples, t strictly

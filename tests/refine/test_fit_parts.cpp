@@ -88,6 +88,30 @@ TEST(StopReasons, EachHasItsOwnTextAndNoneHasNone) {
             std::string::npos);
 }
 
+TEST(FitTerms, TheDefaultsAreThePapersModelWithItsNuisanceTermsEstimated) {
+  const FitSettings settings;
+  EXPECT_EQ(settings.voltage_hold, estimator::VoltageHold::zoh);
+  EXPECT_EQ(settings.voltage_interval, VoltageInterval::before);
+  for (const NuisanceSetting* n : {&settings.nuisance.x_zero, &settings.nuisance.ambient_offset,
+                                   &settings.nuisance.ambient_drift, &settings.nuisance.sensor_lag})
+    EXPECT_FALSE(n->fixed);
+  for (const ExtensionMode m :
+       {settings.extensions.resistance_tempco, settings.extensions.stiffness_softening,
+        settings.extensions.cooling_tempco})
+    EXPECT_EQ(m, ExtensionMode::off);
+  EXPECT_LE(settings.declared_noise.maxCoeff(), 0.0);
+  std::set<std::string> texts;
+  for (const auto v : {VoltageInterval::before, VoltageInterval::after, VoltageInterval::estimate})
+    texts.insert(to_text(v));
+  for (const auto m : {ExtensionMode::off, ExtensionMode::on, ExtensionMode::automatic})
+    texts.insert(to_text(m));
+  for (const auto c :
+       {InformationCriterion::none, InformationCriterion::bic, InformationCriterion::yic})
+    texts.insert(to_text(c));
+  EXPECT_EQ(texts.size(), 9U);
+  EXPECT_EQ(texts.count(""), 0U);
+}
+
 TEST(Coordinates, MapTheFreeSlotsInOrderAndHoldTheRest) {
   ParamVector base;
   base << 10, 11, 12, 13, 14, 15, 16, 17, 18;

@@ -1,0 +1,93 @@
+#pragma once
+// What the refined fit (refine/fit.hpp) is told about a real bench and what it reports back about
+// it, beyond θ: the voltage's timing relative to the samples, the nuisance terms of a real bench
+// (a sensor's zero, the ambient's offset and drift, the temperature sensor's lag), and the model
+// extensions a real SCP may need (temperature coefficients of R, k and λ). Plain fixed-size
+// structs; the defaults are the fit's behaviour before these terms existed, except the nuisance
+// terms, which are estimated unless fixed (issue 28). docs/numerics.md describes each term.
+
+#include <cstdint>
+
+namespace scp::refine {
+
+// Which interval of the record a row's voltage was applied over.
+enum class VoltageInterval : std::uint8_t {
+  // Over the interval before its sample, from WindowSample::voltage_since (or the previous
+  // sample) until t: the daemon's own recordings.
+  before,
+  // From its sample's t until the next sample: a log that writes the command issued at t.
+  after,
+  // Chosen by the data: the fit is run with each and the one with the lower cost kept
+  // (FitResult::voltage_interval says which).
+  estimate,
+};
+const char* to_text(VoltageInterval interval) noexcept;  // "before", "after", "estimate"
+
+// One nuisance term: estimated (the default), or held at `value` (its units: FitSettings).
+struct NuisanceSetting {
+  bool fixed = false;
+  double value = 0.0;
+};
+
+// Sign conventions, chosen so that θ means what the paper means (relative to the true rest
+// position and the true ambient; T̄ is recorded relative to the configured ambient):
+//   x_measured = x_true + x_zero                                    (m)
+//   T̄_measured = lag(T̄_true) + ambient_offset + ambient_drift·(t − t0)   (°C, °C/s)
+// where the true ambient is the configured one plus ambient_offset + ambient_drift·(t − t0) (a
+// room 1 °C warmer than configured: offset +1), t0 is the window's first sample, and lag() is
+// the temperature sensor's first order τs·dy/dt = T̄_true − y (τs = sensor_lag, s, ≥ 0; 0 = no
+// lag). The sensor lags the absolute temperature; the lag of the ambient's ramp is the constant
+// −drift·τs, which the offset takes.
+struct NuisanceSettings {
+  NuisanceSetting x_zero;          // m
+  NuisanceSetting ambient_offset;  // °C
+  NuisanceSetting ambient_drift;   // °C/s
+  NuisanceSetting sensor_lag;      // s, ≥ 0
+};
+
+// An extension of the paper's model: left out, always in, or kept where an information
+// criterion says it earns its place in the window (automatic).
+enum class ExtensionMode : std::uint8_t { off, on, automatic };
+const char* to_text(ExtensionMode mode) noexcept;  // "off", "on", "auto"
+
+// θ keeps its meaning at T̄ = 0 (the ambient):
+//   resistance_tempco   ρ (1/°C): R = R0·(1 + ρT̄), the heating θ6·V²/(1 + ρT̄)
+//   stiffness_softening κ (1/°C): k = k0·(1 − κT̄), a force +θ3·κ·T̄·x
+//   cooling_tempco      γ (1/°C): λ = λ0·(1 + γT̄), the cooling −θ5·(1 + γT̄)·T̄
+struct ExtensionSettings {
+  ExtensionMode resistance_tempco = ExtensionMode::off;
+  ExtensionMode stiffness_softening = ExtensionMode::off;
+  ExtensionMode cooling_tempco = ExtensionMode::off;
+};
+
+// A nuisance term as the fit left it: estimated (with its standard deviation) or held.
+struct NuisanceEstimate {
+  bool estimated = false;
+  double value = 0.0;
+  double sigma = 0.0;  // 0 when held
+};
+
+struct Nuisance {
+  NuisanceEstimate x_zero, ambient_offset, ambient_drift, sensor_lag;
+};
+
+enum class InformationCriterion : std::uint8_t { none, bic, yic };
+const char* to_text(InformationCriterion criterion) noexcept;  // "none", "bic", "yic"
+
+// An extension as the fit left it.
+struct ExtensionEstimate {
+  ExtensionMode mode = ExtensionMode::off;
+  bool kept = false;  // in the model θ was fitted with
+  double value = 0.0;
+  double sigma = 0.0;
+  // automatic: the criterion with the extension minus without it, fitted to the same window
+  // (negative: the extension earned its place), and which criterion decided; none otherwise.
+  double criterion_difference = 0.0;
+  InformationCriterion criterion = InformationCriterion::none;
+};
+
+struct Extensions {
+  ExtensionEstimate resistance_tempco, stiffness_softening, cooling_tempco;
+};
+
+}  // namespace scp::refine
