@@ -14,8 +14,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "refine/stages.hpp"
+#include "refine/voltage_timing.hpp"
 
 namespace scp::refine {
 
@@ -68,12 +70,13 @@ StopReason verdict(const FitContext& ctx, const FitState& state,
   return StopReason::none;
 }
 
-FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
-              const FitSettings& settings) {
+namespace {
+
+// fit() on a window whose voltage timing is WindowSample's (refine/voltage_timing.hpp).
+FitResult fit_prepared(std::span<const WindowSample> window, const Vector6& theta_start,
+                       const FitSettings& settings) {
   FitResult result;
   result.theta = theta_start;
-  if (const StopReason bad = check_window(window); bad != StopReason::none)
-    return ended(result, bad);
   result.samples = window.size();
   result.t_begin = window.front().t;
   result.t_end = window.back().t;
@@ -101,6 +104,25 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
   result.stop = verdict(ctx, state, covariance);
   result.converged = state.joint.converged && result.stop == StopReason::none;
   result.message = result.stop == StopReason::none ? state.joint.message : to_text(result.stop);
+  return result;
+}
+
+}  // namespace
+
+FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
+              const FitSettings& settings) {
+  if (const StopReason bad = check_window(window); bad != StopReason::none) {
+    FitResult result;
+    result.theta = theta_start;
+    return ended(result, bad);
+  }
+  const VoltageInterval interval = settings.voltage_interval == VoltageInterval::estimate
+                                       ? choose_voltage_interval(window, theta_start, settings)
+                                       : settings.voltage_interval;
+  std::vector<WindowSample> storage;
+  FitResult result = fit_prepared(prepare_window(window, settings.voltage_hold, interval, storage),
+                                  theta_start, settings);
+  result.voltage_interval = interval;
   return result;
 }
 

@@ -41,6 +41,9 @@ struct WindowSample {
   double tbar = 0.0;              // °C above ambient
   double voltage = 0.0;           // V
   double voltage_since = -1e300;  // s
+  // true: the voltage ramps linearly from the previous sample's `voltage` at its t to this one's
+  // at t (a first-order hold; voltage_since is then not used), V² quadratic over the interval.
+  bool voltage_ramp = false;
 };
 
 // The model's state at the window's first sample: x, ẋ, T̄.

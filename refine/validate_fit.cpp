@@ -12,7 +12,7 @@ double mean_square_voltage(const WindowSample& prev, const WindowSample& cur,
   double tau = 0.0, sum = 0.0;
   for (int i = 0; i < n; ++i) {
     tau += pieces[i].tau;
-    sum += pieces[i].tau * pieces[i].u;
+    sum += pieces[i].tau * mean_input(pieces[i]);
   }
   return tau > 0.0 ? sum / tau : cur.voltage * cur.voltage;
 }
