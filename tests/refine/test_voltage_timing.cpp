@@ -95,6 +95,35 @@ TEST(VoltageTiming, TheIntervalIsChosenByTheData) {
   EXPECT_LT(max_relative_error(before.theta, truth), 1e-6);
 }
 
+// The daemon's settings on a link (refine.link_timing: estimate) with its default 5 ms delay limit
+// on noise-free 1 kHz records: a delay beyond the interval is a plateau of the model (every switch
+// held at its interval's end), which the search once wandered onto ("could not be estimated (no
+// heating?)", σ = 0). A held V logged after its interval is the delay of one whole period.
+TEST(VoltageTiming, TheDelayIsEstimatedOnNoiseFreeRecordsWithALimitBeyondOnePeriod) {
+  const Vector6 truth = test::theta_of(test::paper_actuator());
+  FitSettings settings;
+  settings.max_input_delay_s = 5e-3;
+  settings.sample_timing_jitter = true;
+  settings.outlier_threshold = kOutlierThreshold2d;
+  settings.landing_timing_jitter = true;
+  struct Case {
+    const char* what;
+    const std::vector<WindowSample>* window;
+    double delay;
+  };
+  for (const Case& c : {Case{"logged before", &test::cached_paper_record(120.0), 0.0},
+                        Case{"logged after", &logged_after(), 1e-3}}) {
+    const FitResult r = fit(*c.window, biased_start(truth), settings);
+    std::printf("%s, delay estimated: %s, d = %.3g s (σ %.2g), max rel error %.3g\n", c.what,
+                r.message, r.input_delay_s, r.input_delay_sigma_s,
+                max_relative_error(r.theta, truth));
+    EXPECT_TRUE(r.converged) << c.what << ": " << r.message;
+    EXPECT_TRUE(r.input_delay_estimated) << c.what;
+    EXPECT_NEAR(r.input_delay_s, c.delay, 1e-8) << c.what;
+    EXPECT_LT(max_relative_error(r.theta, truth), 1e-6) << c.what;
+  }
+}
+
 void print_errors(const char* what, const FitResult& r, const Vector6& truth) {
   std::printf("%s: %s, relative errors", what, r.message);
   for (int i = 0; i < 6; ++i) std::printf(" %.2g", r.theta[i] / truth[i] - 1.0);
