@@ -75,7 +75,7 @@ class DelayProfile {
   DelayProfile(const FitContext& ctx, const ParamVector& start)
       : ctx_(ctx),
         budget_(ctx.window, own_settings(ctx.settings)),
-        slots_(thermal_slots(ctx.settings.known)),
+        slots_(thermal_slots(ctx.settings)),
         coordinates_(slots_, start) {
     best.p = start;
   }

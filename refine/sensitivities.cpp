@@ -55,7 +55,7 @@ void SensitivitySimulator::advance_piece_sensitivities(const Piece& piece,
   const double th2 = theta_[kDampingSlope], th4 = theta_[kThermalForce];
   // G_p (second row; the first row of G is 0 because dx/dt = ẋ holds for every p).
   auto forcing = [&](const ModelState& s, const ParamVector& dt) noexcept {
-    ParamVector g;
+    ParamVector g = ParamVector::Zero();
     g[kDamping] = -s.xdot;
     g[kDampingSlope] = -s.tbar * s.xdot;
     g[kStiffness] = -s.x;
@@ -75,7 +75,7 @@ void SensitivitySimulator::advance_piece_sensitivities(const Piece& piece,
   const Matrix2& e = mp.ef.exp;
   const Matrix2& f1 = mp.ef.phi1;
   const Matrix2& f2 = mp.ef.phi2;
-  for (int p = 0; p < kParams; ++p) {
+  for (int p = 0; p < kModelSlots; ++p) {
     // G linear over the piece: trapezoid mean and chord slope, then as the state's forcing.
     const double gbar = 0.5 * (ga[p] + gb[p]);
     const double gslope = (gb[p] - ga[p]) / tau;

@@ -45,7 +45,7 @@ void publish_residuals(const FitContext& ctx, const FitState& state, const PassR
                        FitResult& result) {
   const std::size_t n = ctx.window.size();
   const std::array<std::size_t, 2> parameters =
-      parameters_per_channel(free_slots(ctx.settings.known));
+      parameters_per_channel(free_slots(ctx.settings.known, ctx.settings.nuisance));
   result.residual_rms = Vector2(std::sqrt(pass.rss[0] / static_cast<double>(n)),
                                 std::sqrt(pass.rss[1] / static_cast<double>(n)));
   result.noise_sigma = ctx.settings.sample_timing_jitter
@@ -68,7 +68,7 @@ CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, Fi
     out.stop = StopReason::cancelled;
     return out;
   }
-  const FreeMask free = free_slots(ctx.settings.known);
+  const FreeMask free = free_slots(ctx.settings.known, ctx.settings.nuisance);
   ParamMatrix white = ParamMatrix::Zero(), hac = ParamMatrix::Zero();
   const bool white_ok = pass.finite && inverse_on_free(pass.jtwj, free, white);
   out.definite = white_ok && sandwich_on_free(pass.jtwj, pass.long_run, free, hac);
@@ -88,6 +88,11 @@ CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, Fi
     out.stop = add_input_delay_error(ctx, state, ps, pass, white, result);
     if (out.stop != StopReason::none) return out;
   }
+  const auto sigma_of = [&hac](int slot) { return std::sqrt(std::max(hac(slot, slot), 0.0)); };
+  result.nuisance.x_zero.sigma = free[kXZeroSlot] ? sigma_of(kXZeroSlot) : 0.0;
+  result.nuisance.ambient_offset.sigma =
+      free[kAmbientOffsetSlot] ? sigma_of(kAmbientOffsetSlot) : 0.0;
+  result.nuisance.ambient_drift.sigma = free[kAmbientDriftSlot] ? sigma_of(kAmbientDriftSlot) : 0.0;
   result.sigma_white = result.covariance_white.diagonal().cwiseMax(0.0).cwiseSqrt();
   result.sigma = result.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
   publish_residuals(ctx, state, pass, result);
