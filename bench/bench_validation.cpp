@@ -87,8 +87,7 @@ BENCHMARK(BM_ValidatorFinish300s)->Unit(benchmark::kMillisecond);
 // Both in one process, alternating: the validator's feed over a cost-only pass (ratio).
 void BM_FeedOverCostPass(benchmark::State& state) {
   model();
-  ParamVector p;
-  p << truth(), 0.0, 0.0, 0.0;
+  const ParamVector p = param_vector(truth(), InitialState::Zero());
   PassSettings ps;
   ps.weight = {1e14, 1e6};
   ps.jacobian = false;

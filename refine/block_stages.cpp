@@ -13,6 +13,13 @@ FreeMask thermal_slots(const std::array<bool, kThetaSize>& known) {
   return free;
 }
 
+FreeMask thermal_slots(const FitSettings& settings) {
+  FreeMask free = thermal_slots(settings.known);
+  free[kAmbientOffsetSlot] = !settings.nuisance.ambient_offset.fixed;
+  free[kAmbientDriftSlot] = !settings.nuisance.ambient_drift.fixed;
+  return free;
+}
+
 PassSettings thermal_pass_settings() {
   PassSettings ps;
   ps.weight = {0.0, 1.0};
@@ -27,8 +34,14 @@ FreeMask mechanical_slots(const std::array<bool, kThetaSize>& known) {
   return free;
 }
 
+FreeMask mechanical_slots(const FitSettings& settings) {
+  FreeMask free = mechanical_slots(settings.known);
+  free[kXZeroSlot] = !settings.nuisance.x_zero.fixed;
+  return free;
+}
+
 StopReason fit_thermal(FitContext& ctx, FitState& state) {
-  const Coordinates c(thermal_slots(ctx.settings.known), state.p);
+  const Coordinates c(thermal_slots(ctx.settings), state.p);
   const StageResult r =
       run_stage(ctx.window, c, thermal_pass_settings(), ctx.max_iterations, ctx.budget);
   state.iterations += r.iterations;
@@ -42,7 +55,7 @@ StopReason fit_thermal(FitContext& ctx, FitState& state) {
 }
 
 StopReason fit_mechanical(FitContext& ctx, FitState& state) {
-  const Coordinates c(mechanical_slots(ctx.settings.known), state.p);
+  const Coordinates c(mechanical_slots(ctx.settings), state.p);
   PassSettings ps;
   ps.weight = {1.0, 0.0};
   const StageResult r = run_stage(ctx.window, c, ps, ctx.max_iterations, ctx.budget, state.range);

@@ -9,7 +9,7 @@ namespace scp::refine {
 
 Matrix6 cramer_rao_bound(std::span<const WindowSample> window, const Vector6& theta,
                          const InitialState& initial, const Vector2& noise_sigma,
-                         const std::array<bool, 6>& known) {
+                         const std::array<bool, 6>& known, const NuisanceSettings& nuisance) {
   Matrix6 bound = Matrix6::Zero();
   if (window.size() < 2 || !theta.allFinite() || !initial.allFinite()) return bound;
   const ParamVector p = param_vector(theta, initial);
@@ -20,7 +20,7 @@ Matrix6 cramer_rao_bound(std::span<const WindowSample> window, const Vector6& th
   }
   const PassResult pass = residual_pass(window, p, ps);
   ParamMatrix inverse;
-  if (!pass.finite || !inverse_on_free(pass.jtwj, free_slots(known), inverse)) {
+  if (!pass.finite || !inverse_on_free(pass.jtwj, free_slots(known, nuisance), inverse)) {
     bound.setConstant(std::numeric_limits<double>::infinity());
     return bound;
   }

@@ -14,8 +14,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "refine/stages.hpp"
+#include "refine/voltage_timing.hpp"
 
 namespace scp::refine {
 
@@ -52,14 +54,31 @@ void take_progress(const FitContext& ctx, const FitState& state, FitResult& resu
     result.input_delay_sigma_inflation = state.delay.sigma_inflation;
   }
   result.sample_timing_sigma_s = state.sample_timing_sigma_s;
+  const NuisanceSettings& n = ctx.settings.nuisance;
+  result.nuisance.x_zero = {!n.x_zero.fixed, state.p[kXZeroSlot], 0.0};
+  result.nuisance.ambient_offset = {!n.ambient_offset.fixed, state.p[kAmbientOffsetSlot], 0.0};
+  result.nuisance.ambient_drift = {!n.ambient_drift.fixed, state.p[kAmbientDriftSlot], 0.0};
+  // Not modelled yet: held at its setting (docs/numerics.md, "Nuisance terms").
+  result.nuisance.sensor_lag = {false, n.sensor_lag.fixed ? n.sensor_lag.value : 0.0, 0.0};
 }
 
 }  // namespace
 
+// The steady T̄ the window's largest V² would hold at θ: a temperature its voltage can drive the
+// actuator to, where the model must hold too (a short window that never gets there could
+// otherwise claim a damping that changes sign just beyond it).
+double steady_tbar(std::span<const WindowSample> window, const ParamVector& p) {
+  double u = 0.0;
+  for (const WindowSample& s : window) u = std::max(u, s.voltage * s.voltage);
+  const double t = p[kHeating] * u / p[kCooling];
+  return std::isfinite(t) ? t : 0.0;
+}
+
 StopReason verdict(const FitContext& ctx, const FitState& state,
                    const CovarianceOutcome& covariance) {
   const TbarRange seen{std::min(covariance.model_range.lo, state.range.lo),
-                       std::max(covariance.model_range.hi, state.range.hi)};
+                       std::max({covariance.model_range.hi, state.range.hi,
+                                 steady_tbar(ctx.window, state.p)})};
   if (!stable_over(state.p, seen)) return StopReason::model_unstable;
   if (!(stiffness(state.p, seen) * ctx.budget.mean_interval() <= kUnresolvedPolePerSample))
     return StopReason::fast_pole_unresolved;
@@ -68,17 +87,19 @@ StopReason verdict(const FitContext& ctx, const FitState& state,
   return StopReason::none;
 }
 
-FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
-              const FitSettings& settings) {
+namespace {
+
+// fit() on a window whose voltage timing is WindowSample's (refine/voltage_timing.hpp).
+FitResult fit_prepared(std::span<const WindowSample> window, const Vector6& theta_start,
+                       const FitSettings& settings) {
   FitResult result;
   result.theta = theta_start;
-  if (const StopReason bad = check_window(window); bad != StopReason::none)
-    return ended(result, bad);
   result.samples = window.size();
   result.t_begin = window.front().t;
   result.t_end = window.back().t;
   FitState state;
   state.p = start_point(window, theta_start, settings.known);
+  set_nuisance_start(settings.nuisance, state.p);
   if (!state.p.allFinite()) return ended(result, StopReason::start_not_finite);
 
   FitContext ctx(window, settings);
@@ -101,6 +122,25 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
   result.stop = verdict(ctx, state, covariance);
   result.converged = state.joint.converged && result.stop == StopReason::none;
   result.message = result.stop == StopReason::none ? state.joint.message : to_text(result.stop);
+  return result;
+}
+
+}  // namespace
+
+FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
+              const FitSettings& settings) {
+  if (const StopReason bad = check_window(window); bad != StopReason::none) {
+    FitResult result;
+    result.theta = theta_start;
+    return ended(result, bad);
+  }
+  const VoltageInterval interval = settings.voltage_interval == VoltageInterval::estimate
+                                       ? choose_voltage_interval(window, theta_start, settings)
+                                       : settings.voltage_interval;
+  std::vector<WindowSample> storage;
+  FitResult result = fit_prepared(prepare_window(window, settings.voltage_hold, interval, storage),
+                                  theta_start, settings);
+  result.voltage_interval = interval;
   return result;
 }
 

@@ -41,6 +41,9 @@ struct WindowSample {
   double tbar = 0.0;              // °C above ambient
   double voltage = 0.0;           // V
   double voltage_since = -1e300;  // s
+  // true: the voltage ramps linearly from the previous sample's `voltage` at its t to this one's
+  // at t (a first-order hold; voltage_since is then not used), V² quadratic over the interval.
+  bool voltage_ramp = false;
 };
 
 // The model's state at the window's first sample: x, ẋ, T̄.
@@ -102,7 +105,7 @@ struct FitSettings {
   estimator::VoltageHold voltage_hold = estimator::VoltageHold::zoh;
   // Which interval a row's voltage belongs to (refine/fit_terms.hpp).
   VoltageInterval voltage_interval = VoltageInterval::before;
-  // The nuisance terms of a real bench, each estimated unless fixed (refine/fit_terms.hpp).
+  // The nuisance terms of a real bench, each estimated or fixed (refine/fit_terms.hpp).
   NuisanceSettings nuisance;
   // The model's extensions (refine/fit_terms.hpp), off unless asked for.
   ExtensionSettings extensions;
@@ -177,11 +180,13 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
 // Cramér–Rao bound of θ for this input (t, voltage, voltage_since of `window`; x and T̄ ignored),
 // the true θ and initial state, and white sensor noise of standard deviation noise_sigma (x in m,
 // T̄ in °C): the covariance an efficient unbiased estimator reaches. Known parameters as in fit();
-// the initial state is a nuisance parameter (estimated alongside, its uncertainty included). A
-// channel with noise_sigma ≤ 0 is taken as not measured.
+// the initial state is a nuisance parameter (estimated alongside, its uncertainty included), and
+// so are the nuisance terms `nuisance` does not fix (as fit(): none by default). A channel with
+// noise_sigma ≤ 0 is taken as not measured.
 Matrix6 cramer_rao_bound(std::span<const WindowSample> window, const Vector6& theta,
                          const InitialState& initial, const Vector2& noise_sigma,
-                         const std::array<bool, 6>& known = {});
+                         const std::array<bool, 6>& known = {},
+                         const NuisanceSettings& nuisance = {});
 
 // Per block (0 mechanical θ1..θ4, 1 thermal θ5, θ6): the Wald statistic of another estimate θ̂_o
 // with claimed standard deviations σ_o against this fit, dᵀ(C_fit + diag(σ_o²))⁻¹d with d = θ̂_o −

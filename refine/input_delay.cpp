@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <vector>
 
 #include "refine/delay_batch_means.hpp"
 #include "refine/golden_section.hpp"
@@ -55,6 +56,16 @@ double earliest_switch_delay(std::span<const WindowSample> w, double limit) {
   return inside ? lead : 0.0;
 }
 
+double latest_switch_delay(std::span<const WindowSample> w, double limit) {
+  if (w.size() < 2) return limit;
+  std::vector<double> room(w.size() - 1);
+  for (std::size_t k = 1; k < w.size(); ++k)
+    room[k - 1] = w[k].t - std::max(w[k].voltage_since, w[k - 1].t);
+  const auto mid = room.begin() + static_cast<std::ptrdiff_t>(room.size() / 2);
+  std::nth_element(room.begin(), mid, room.end());
+  return std::min(limit, *mid);
+}
+
 namespace {
 
 // The thermal cost profiled along d: at each d, (θ5, θ6, T̄0) refitted from the best fit so far (a
@@ -64,7 +75,7 @@ class DelayProfile {
   DelayProfile(const FitContext& ctx, const ParamVector& start)
       : ctx_(ctx),
         budget_(ctx.window, own_settings(ctx.settings)),
-        slots_(thermal_slots(ctx.settings.known)),
+        slots_(thermal_slots(ctx.settings)),
         coordinates_(slots_, start) {
     best.p = start;
   }
@@ -167,12 +178,13 @@ InputDelayEstimate estimate_input_delay(const FitContext& ctx, const ParamVector
   // resolves d to a fraction of a µs on a clean link (tests/refine/test_fit.cpp,
   // AnUnmodelledOutputLatencyIsEstimatedFromTemperature).
   const double lowest = -earliest_switch_delay(ctx.window, limit);
+  const double highest = latest_switch_delay(ctx.window, limit);
   int steps = 0;
   golden_section(
-      lowest, limit, 0.5e-6, 80, [&](double d) { return profile.cost_at(d); },
+      lowest, highest, 0.5e-6, 80, [&](double d) { return profile.cost_at(d); },
       [&] { return profile.stopped(); }, steps);  // cost_at keeps the best point it has seen
   if (!std::isfinite(profile.best_cost) || profile.stopped()) return profile.best;
-  measure_curvature(profile, lowest, limit);
+  measure_curvature(profile, lowest, highest);
   InputDelayEstimate& out = profile.best;
   out.at_limit = std::abs(out.delay) > limit * (1.0 - 1e-6);
   if (out.ok && ctx.settings.covariance_batches > 1) {

@@ -28,4 +28,12 @@ StopReason fit_input_delay(FitContext& ctx, FitState& state);
 // command was computed from that sample: causality says d ≥ 0 there).
 double earliest_switch_delay(std::span<const WindowSample> window, double limit);
 
+// How far after its recorded instant a switch can be moved and still mean something: the model
+// holds a switch moved past its interval's end at that end (pieces_between), so every longer delay
+// is the same model (a plateau the search must not wander onto: noise-free, a 5 ms limit at 1 kHz
+// left it there, "could not be estimated"). The median room from the recorded switch (or the
+// previous sample) to the interval's end, at most `limit`. A delay of a whole period or more is
+// the voltage interval's business (FitSettings::voltage_interval).
+double latest_switch_delay(std::span<const WindowSample> window, double limit);
+
 }  // namespace scp::refine

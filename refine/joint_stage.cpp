@@ -76,7 +76,7 @@ PassSettings joint_pass_settings(const FitSettings& settings, const FitState& st
 }
 
 StopReason fit_joint(FitContext& ctx, FitState& state) {
-  const FreeMask free = free_slots(ctx.settings.known);
+  const FreeMask free = free_slots(ctx.settings.known, ctx.settings.nuisance);
   const std::array<std::size_t, 2> parameters = parameters_per_channel(free);
   const bool timing = ctx.settings.sample_timing_jitter;
   // With the timing variance to estimate too, more rounds: it starts from 0.

@@ -155,4 +155,8 @@ Phi12 phi12(double z) noexcept {
   return {p1, (p1 - 1.0) / z};
 }
 
+std::array<double, 6> phi_functions(double z) noexcept {
+  return phis(z);
+}
+
 }  // namespace scp::refine

@@ -16,6 +16,7 @@
 // tests/refine/test_matrix_functions.cpp against a scaling-and-squaring reference.
 
 #include <Eigen/Core>
+#include <array>
 
 namespace scp::refine {
 
@@ -35,5 +36,8 @@ struct Phi12 {
   double phi2;
 };
 Phi12 phi12(double z) noexcept;
+
+// φ0..φ5 at real z (φ0 = e^z, φ_{k+1}(z) = (φ_k(z) − 1/k!)/z), accurate near 0 too.
+std::array<double, 6> phi_functions(double z) noexcept;
 
 }  // namespace scp::refine

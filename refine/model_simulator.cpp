@@ -1,6 +1,7 @@
 #include "refine/model_simulator.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace scp::refine {
@@ -9,6 +10,11 @@ int pieces_between(const WindowSample& prev, const WindowSample& cur, Piece out[
                    double input_delay) noexcept {
   const double dt = cur.t - prev.t;
   if (!(dt > 0.0)) return 0;
+  if (cur.voltage_ramp) {
+    const double a = prev.voltage, slope = (cur.voltage - prev.voltage) / dt;
+    out[0] = {dt, a * a, 2.0 * a * slope, slope * slope};
+    return 1;
+  }
   const double u_prev = prev.voltage * prev.voltage;
   const double u_cur = cur.voltage * cur.voltage;
   // A switch at or before the previous sample (a DAC that switches at sample instants, or −∞)
@@ -36,19 +42,27 @@ int substeps(const Vector6& theta, double tbar, double tau) noexcept {
 ThermalPiece thermal_piece(double theta5, double tau) noexcept {
   const double z = -theta5 * tau;
   const Phi12 p = phi12(z);
+  const std::array<double, 6> f = phi_functions(z);  // φ3, φ4 for a ramp's V²
   ThermalPiece tp;
   tp.decay = std::exp(z);
   tp.gain = tau * p.phi1;
   tp.mean_of_start = p.phi1;
   tp.mean_of_input = tau * p.phi2;
   tp.dgain_dtheta5 = -tau * tau * (p.phi1 - p.phi2);
+  const double t2 = tau * tau, t3 = t2 * tau;
+  tp.gain1 = t2 * p.phi2;
+  tp.gain2 = 2.0 * t3 * f[3];
+  tp.mean1 = t2 * f[3];
+  tp.mean2 = 2.0 * t3 * f[4];
+  tp.dgain1 = -t3 * (p.phi2 - 2.0 * f[3]);
+  tp.dgain2 = -2.0 * t3 * tau * (f[3] - 3.0 * f[4]);
   return tp;
 }
 
 ThermalPiece advance_thermal_piece(const Vector6& theta, const Piece& piece, ModelState& state,
                                    ThermalCache& cache) noexcept {
   const ThermalPiece& tp = cache.get(theta[kCooling], piece.tau);
-  state.tbar = tp.decay * state.tbar + tp.gain * theta[kHeating] * piece.u;
+  state.tbar = tp.decay * state.tbar + theta[kHeating] * tp.input(piece);
   return tp;
 }
 
@@ -56,12 +70,11 @@ MechanicalPiece advance_piece(const Vector6& theta, const Piece& piece, ModelSta
                               ThermalCache& cache) noexcept {
   MechanicalPiece mp;
   const double tau = piece.tau;
-  const double input = theta[kHeating] * piece.u;
   const double ta = s.tbar;
   mp.thermal = cache.get(theta[kCooling], tau);
   const ThermalPiece& tp = mp.thermal;
-  const double tb = tp.decay * ta + tp.gain * input;
-  const double tavg = tp.mean_of_start * ta + tp.mean_of_input * input;
+  const double tb = tp.decay * ta + theta[kHeating] * tp.input(piece);
+  const double tavg = tp.mean_of_start * ta + theta[kHeating] * tp.mean(piece);
   // T̄ is exponential inside the piece; its slope at the middle differs from the chord's by
   // O(τ²), which enters Ω only at O(τ⁵).
   const double tdot = (tb - ta) / tau;
@@ -100,10 +113,9 @@ long advance_interval(const Vector6& theta, const WindowSample& prev, const Wind
   long taken = 0;
   for (int i = 0; i < n; ++i) {
     const int m = substeps(theta, state.tbar, pieces[i].tau);
-    const Piece sub{pieces[i].tau / m, pieces[i].u};
-    for (int j = 0; j < m; ++j) advance_piece(theta, sub, state, cache);
+    for (int j = 0; j < m; ++j) advance_piece(theta, sub_piece(pieces[i], j, m), state, cache);
     taken += m;
-    if (u_end != nullptr) *u_end = pieces[i].u;
+    if (u_end != nullptr) *u_end = end_input(pieces[i]);
   }
   return taken;
 }

@@ -32,11 +32,28 @@ struct ModelState {
   double x = 0.0, xdot = 0.0, tbar = 0.0;
 };
 
-// A stretch of an interval over which V² is constant.
+// A stretch of an interval and its V², u + du·σ + ddu·σ² at σ ∈ [0, τ] from the piece's start:
+// constant for a held voltage, quadratic for a ramp (WindowSample::voltage_ramp).
 struct Piece {
   double tau = 0.0;  // s
-  double u = 0.0;    // V²
+  double u = 0.0;    // V² at the start
+  double du = 0.0;   // V²/s
+  double ddu = 0.0;  // V²/s²
 };
+
+// Sub-piece j of m equal ones of `piece`, its V² re-expanded about its own start.
+inline Piece sub_piece(const Piece& piece, int j, int m) noexcept {
+  const double h = piece.tau / m, s = h * j;
+  return {h, piece.u + (piece.du + piece.ddu * s) * s, piece.du + 2.0 * piece.ddu * s, piece.ddu};
+}
+
+// V²'s mean over the piece and its value at the end.
+inline double mean_input(const Piece& p) noexcept {
+  return p.u + p.du * p.tau / 2.0 + p.ddu * p.tau * p.tau / 3.0;
+}
+inline double end_input(const Piece& p) noexcept {
+  return p.u + (p.du + p.ddu * p.tau) * p.tau;
+}
 
 // The pieces from `prev` to `cur` (see WindowSample): one, or two when the switch falls strictly
 // inside (prev.t, cur.t). Returns 0 when cur.t ≤ prev.t. `input_delay` (s) moves the switch
@@ -46,14 +63,28 @@ struct Piece {
 int pieces_between(const WindowSample& prev, const WindowSample& cur, Piece out[2],
                    double input_delay = 0.0) noexcept;
 
-// Exact coefficients of the thermal block over a piece of length τ:
-//   T̄(τ) = decay·T̄(0) + gain·θ6·u,  mean of T̄ = mean_of_start·T̄(0) + mean_of_input·θ6·u.
+// Exact coefficients of the thermal block over a piece of length τ (z = −θ5τ):
+//   T̄(τ) = decay·T̄(0) + θ6·(gain·u + gain1·du + gain2·ddu),
+//   mean of T̄ = mean_of_start·T̄(0) + θ6·(mean_of_input·u + mean1·du + mean2·ddu),
+// from ∫₀^τ e^{−θ5(τ−s)} s^j ds = j!·τ^{j+1}·φ_{j+1}(z), and φ_k' = φ_k − k·φ_{k+1}.
 struct ThermalPiece {
-  double decay = 1.0;          // e^{−θ5 τ}
-  double gain = 0.0;           // τ·φ1(−θ5 τ)
-  double mean_of_start = 1.0;  // φ1(−θ5 τ)
-  double mean_of_input = 0.0;  // τ·φ2(−θ5 τ)
-  double dgain_dtheta5 = 0.0;  // −τ²·(φ1 − φ2)(−θ5 τ), for the sensitivities
+  double decay = 1.0;               // e^{−θ5 τ}
+  double gain = 0.0;                // τ·φ1(−θ5 τ)
+  double mean_of_start = 1.0;       // φ1(−θ5 τ)
+  double mean_of_input = 0.0;       // τ·φ2(−θ5 τ)
+  double dgain_dtheta5 = 0.0;       // −τ²·(φ1 − φ2)(−θ5 τ), for the sensitivities
+  double gain1 = 0.0, gain2 = 0.0;  // τ²·φ2, 2τ³·φ3
+  double mean1 = 0.0, mean2 = 0.0;  // τ²·φ3, 2τ³·φ4
+  double dgain1 = 0.0, dgain2 = 0.0;  // their ∂/∂θ5: −τ³(φ2 − 2φ3), −2τ⁴(φ3 − 3φ4)
+
+  // ∫ e^{−θ5(τ−s)} V²(s) ds over the piece, its ∂/∂θ5, and the mean of the same over σ ∈ [0, τ].
+  double input(const Piece& p) const noexcept { return gain * p.u + gain1 * p.du + gain2 * p.ddu; }
+  double dinput_dtheta5(const Piece& p) const noexcept {
+    return dgain_dtheta5 * p.u + dgain1 * p.du + dgain2 * p.ddu;
+  }
+  double mean(const Piece& p) const noexcept {
+    return mean_of_input * p.u + mean1 * p.du + mean2 * p.ddu;
+  }
 };
 ThermalPiece thermal_piece(double theta5, double tau) noexcept;
 

@@ -9,6 +9,7 @@
 #include <array>
 
 #include "estimator/types.hpp"
+#include "refine/fit_terms.hpp"
 
 namespace scp::refine {
 
@@ -21,7 +22,13 @@ inline constexpr int kCooling = 4;       // θ5 = λ/Cth
 inline constexpr int kHeating = 5;       // θ6 = 1/(R·Cth)
 // The model's state at the window's first sample: x, ẋ, T̄.
 inline constexpr int kX0 = 6, kXdot0 = 7, kTbar0 = 8;
-inline constexpr int kParams = 9;
+// The slots the simulation sees (θ and the initial state); the ones after act on the outputs only.
+inline constexpr int kModelSlots = 9;
+// The nuisance terms of a real bench (refine/fit_terms.hpp, their signs): the displacement
+// sensor's zero (m), added to x; the ambient's offset (°C) and drift (°C/s, from the window's
+// first sample), added to T̄.
+inline constexpr int kXZeroSlot = 9, kAmbientOffsetSlot = 10, kAmbientDriftSlot = 11;
+inline constexpr int kParams = 12;
 
 inline constexpr int kThetaSize = 6;
 inline constexpr int kMechanicalSize = 4;  // θ1..θ4, at the head of θ
@@ -35,7 +42,8 @@ using ParamMatrix = Eigen::Matrix<double, kParams, kParams>;
 // The slots a fit estimates; the others stay where they started.
 using FreeMask = std::array<bool, kParams>;
 
-// θ free unless `known`, the initial state always (a nuisance the window must pay for).
+// θ free unless `known`, the initial state always (a nuisance the window must pay for); the
+// nuisance terms held (the paper's model).
 inline FreeMask free_slots(const std::array<bool, kThetaSize>& known) {
   FreeMask free{};
   for (int i = 0; i < kThetaSize; ++i) free[i] = !known[i];
@@ -43,9 +51,43 @@ inline FreeMask free_slots(const std::array<bool, kThetaSize>& known) {
   return free;
 }
 
-// Whether a slot moves the model's T̄ (the thermal block does not see x); every slot moves x.
+// The same with the nuisance terms free unless `nuisance` fixes them.
+inline FreeMask free_slots(const std::array<bool, kThetaSize>& known,
+                           const NuisanceSettings& nuisance) {
+  FreeMask free = free_slots(known);
+  free[kXZeroSlot] = !nuisance.x_zero.fixed;
+  free[kAmbientOffsetSlot] = !nuisance.ambient_offset.fixed;
+  free[kAmbientDriftSlot] = !nuisance.ambient_drift.fixed;
+  return free;
+}
+
+// Whether a slot moves the model's T̄ (the thermal block does not see x); every slot of the
+// simulation moves x.
 constexpr bool acts_on_tbar(int slot) {
   return slot == kCooling || slot == kHeating || slot == kTbar0;
+}
+// Whether a slot moves the x or the T̄ the fit compares with the measurement.
+constexpr bool in_x_output(int slot) {
+  return slot != kAmbientOffsetSlot && slot != kAmbientDriftSlot;
+}
+constexpr bool in_tbar_output(int slot) {
+  return acts_on_tbar(slot) || slot == kAmbientOffsetSlot || slot == kAmbientDriftSlot;
+}
+
+// The model's outputs at a sample `since` s after the window's first, from the simulation's
+// (x, T̄) and p's nuisance slots.
+inline double x_output(const ParamVector& p, double x_model) {
+  return x_model + p[kXZeroSlot];
+}
+inline double tbar_output(const ParamVector& p, double tbar_model, double since) {
+  return tbar_model + p[kAmbientOffsetSlot] + p[kAmbientDriftSlot] * since;
+}
+
+// p's nuisance slots at their fixed values (the estimated ones start at 0).
+inline void set_nuisance_start(const NuisanceSettings& n, ParamVector& p) {
+  p[kXZeroSlot] = n.x_zero.fixed ? n.x_zero.value : 0.0;
+  p[kAmbientOffsetSlot] = n.ambient_offset.fixed ? n.ambient_offset.value : 0.0;
+  p[kAmbientDriftSlot] = n.ambient_drift.fixed ? n.ambient_drift.value : 0.0;
 }
 
 // p from θ and the initial state (every other slot 0).

@@ -148,7 +148,8 @@ double outlier_consistency(double threshold) {
 
 // PassSettings::validator: sample k as the pass sees it (rx, rt its residuals).
 void feed_validator(ResidualValidator& v, std::span<const WindowSample> window, std::size_t k,
-                    const SensitivitySimulator& sim, double rx, double rt, double input_delay) {
+                    const SensitivitySimulator& sim, const ParamVector& jx, const ParamVector& jt,
+                    double rx, double rt, double input_delay) {
   const WindowSample& w = window[k];
   ValidationSample s;
   s.t = w.t;
@@ -159,20 +160,23 @@ void feed_validator(ResidualValidator& v, std::span<const WindowSample> window, 
   s.thermal_input =
       k > 0 ? mean_square_voltage(window[k - 1], w, input_delay) : w.voltage * w.voltage;
   s.mechanical_input = sim.state().tbar;
-  s.jacobian_x = std::span<const double>(sim.dx().data(), kParams);
-  s.jacobian_tbar = std::span<const double>(sim.dtbar().data(), kParams);
+  s.jacobian_x = std::span<const double>(jx.data(), kParams);
+  s.jacobian_tbar = std::span<const double>(jt.data(), kParams);
   v.add(s);
 }
 
-// The residual bookkeeping shared by both passes.
+// The residual bookkeeping shared by both passes: measured − the model's outputs, the simulation's
+// plus p's nuisance terms.
 struct ResidualSums {
   PassResult& r;
   double wx, wt;
+  const ParamVector& p;
+  double t0;  // the window's first sample: the ambient drift's origin
   double prev_rx = 0.0, prev_rt = 0.0;
 
   void add(std::size_t k, const WindowSample& w, const ModelState& s, double& rx, double& rt) {
-    rx = w.x - s.x;
-    rt = w.tbar - s.tbar;
+    rx = w.x - x_output(p, s.x);
+    rt = w.tbar - tbar_output(p, s.tbar, w.t - t0);
     r.tbar_min = std::min(r.tbar_min, s.tbar);
     r.tbar_max = std::max(r.tbar_max, s.tbar);
     r.cost += wx * rx * rx + wt * rt * rt;
@@ -247,6 +251,14 @@ struct Reference {
                    settings.timing_variance);
   }
 
+  // The reference's residuals at `sample` (its outputs with the reference's nuisance terms).
+  double x_residual(const WindowSample& sample, const PassSettings& settings) const {
+    return sample.x - x_output(settings.timing_reference, state.x);
+  }
+  double tbar_residual(const WindowSample& sample, const PassSettings& settings, double t0) const {
+    return sample.tbar - tbar_output(settings.timing_reference, state.tbar, sample.t - t0);
+  }
+
   // The trajectory's velocity g = (ẋ, dT̄/dt) at the sample.
   Eigen::Vector2d velocity() const {
     return {state.xdot, -theta[kCooling] * state.tbar + theta[kHeating] * u};
@@ -274,9 +286,9 @@ struct WeightedSample {
 // JᵀWJ and the cost (which ResidualSums counted as wx·rx² + wt·rt²), and its share of the
 // variances' Fisher scoring.
 WeightedSample add_timing_weighted(const PassSettings& settings, double wx, double wt,
-                                   const Reference& ref, const WindowSample& sample, double rx,
-                                   double rt, const ParamVector& jx, const ParamVector& jt,
-                                   PassResult& r) {
+                                   const Reference& ref, const WindowSample& sample, double t0,
+                                   double rx, double rt, const ParamVector& jx,
+                                   const ParamVector& jt, PassResult& r) {
   const double s = settings.timing_variance;
   const Eigen::Vector2d g = ref.velocity();
   const Eigen::Matrix2d pred =
@@ -294,8 +306,8 @@ WeightedSample add_timing_weighted(const PassSettings& settings, double wx, doub
     w(1, 1) = 1.0 / c(1, 1);
   }
   const double w_xx = w(0, 0), w_xt = w(0, 1), w_tt = w(1, 1);
-  const double omega = outlier_weight(settings.outlier_threshold, sample.x - ref.state.x,
-                                      sample.tbar - ref.state.tbar, w_xx, w_xt, w_tt);
+  const double omega = outlier_weight(settings.outlier_threshold, ref.x_residual(sample, settings),
+                                      ref.tbar_residual(sample, settings, t0), w_xx, w_xt, w_tt);
   if (omega < 1.0) ++r.outliers;
   if (w_xx != 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, omega * w_xx);
   if (w_tt != 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jt, omega * w_tt);
@@ -354,22 +366,24 @@ bool jacobian_pass(std::span<const WindowSample> window, const ParamVector& p,
       break;
     }
     sums.add(k, window[k], sim.state(), rx, rt);
+    ParamVector jx = sim.dx(), jt = sim.dtbar();
+    jx[kXZeroSlot] = 1.0;
+    jt[kAmbientOffsetSlot] = 1.0;
+    jt[kAmbientDriftSlot] = window[k].t - sums.t0;
     if (settings.validator != nullptr)
-      feed_validator(*settings.validator, window, k, sim, rx, rt, settings.input_delay);
+      feed_validator(*settings.validator, window, k, sim, jx, jt, rx, rt, settings.input_delay);
     if (k == next_batch) [[unlikely]] {
       // sums.add has counted sample k's wx·rx² + wt·rt² already.
       batch_score = batch_sums.begin_batch(k, r.jtwj, r.cost - (wx * rx * rx + wt * rt * rt));
       next_batch = batch_sums.next_start();
     }
-    const ParamVector& jx = sim.dx();
-    const ParamVector& jt = sim.dtbar();
     WeightedSample sample;
     if (!timing) {
       if (wx > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, wx);
       if (wt > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jt, wt);
       sample.score = wx * rx * jx + wt * rt * jt;
     } else {
-      sample = add_timing_weighted(settings, wx, wt, ref, window[k], rx, rt, jx, jt, r);
+      sample = add_timing_weighted(settings, wx, wt, ref, window[k], sums.t0, rx, rt, jx, jt, r);
     }
     if (ref.landing) {
       // The update, after this sample's sensitivities were used: a down-weighted sample
@@ -379,7 +393,7 @@ bool jacobian_pass(std::span<const WindowSample> window, const ParamVector& p,
       sim.correct_with_tbar(gain, rt);
       // The reference trajectory is filtered alike, so that its residuals, which set the
       // robust weights, are innovations too.
-      correct_with_tbar(ref.state, gain, window[k].tbar - ref.state.tbar);
+      correct_with_tbar(ref.state, gain, ref.tbar_residual(window[k], settings, sums.t0));
     }
     r.jtwr += sample.score;
     if (hac) hac->add(sample.score);
@@ -401,7 +415,7 @@ PassResult residual_pass(std::span<const WindowSample> window, const ParamVector
   if (window.empty()) return r;
   const double wx = settings.thermal_only ? 0.0 : settings.weight[0];
   const double wt = settings.weight[1];
-  ResidualSums sums{r, wx, wt};
+  ResidualSums sums{r, wx, wt, p, window.front().t};
   r.tbar_min = r.tbar_max = initial_state_of(p)[2];
   const bool stopped = settings.jacobian ? jacobian_pass(window, p, settings, sums)
                                          : cost_only_pass(window, p, settings, sums);

@@ -27,9 +27,9 @@ void SensitivitySimulator::advance(const WindowSample& prev, const WindowSample&
       continue;
     }
     const int m = substeps(theta_, state_.tbar, pieces[i].tau);
-    const Piece sub{pieces[i].tau / m, pieces[i].u};
     substeps_ += m;
     for (int j = 0; j < m; ++j) {
+      const Piece sub = sub_piece(pieces[i], j, m);
       const ModelState before = state_;
       const MechanicalPiece mp = advance_piece(theta_, sub, state_, cache_);
       advance_piece_sensitivities(sub, mp, before);
@@ -42,8 +42,8 @@ void SensitivitySimulator::advance_thermal_sensitivities(const Piece& piece, con
   // T̄(τ) = e^{−θ5τ}T̄(0) + τφ1(−θ5τ)·θ6·u, differentiated exactly.
   for (int p : {kCooling, kHeating, kTbar0}) dtbar_[p] *= tp.decay;
   dtbar_[kCooling] +=
-      -piece.tau * tp.decay * tbar_before + tp.dgain_dtheta5 * theta_[kHeating] * piece.u;
-  dtbar_[kHeating] += tp.gain * piece.u;
+      -piece.tau * tp.decay * tbar_before + tp.dinput_dtheta5(piece) * theta_[kHeating];
+  dtbar_[kHeating] += tp.input(piece);
 }
 
 void SensitivitySimulator::advance_piece_sensitivities(const Piece& piece,
@@ -55,7 +55,7 @@ void SensitivitySimulator::advance_piece_sensitivities(const Piece& piece,
   const double th2 = theta_[kDampingSlope], th4 = theta_[kThermalForce];
   // G_p (second row; the first row of G is 0 because dx/dt = ẋ holds for every p).
   auto forcing = [&](const ModelState& s, const ParamVector& dt) noexcept {
-    ParamVector g;
+    ParamVector g = ParamVector::Zero();
     g[kDamping] = -s.xdot;
     g[kDampingSlope] = -s.tbar * s.xdot;
     g[kStiffness] = -s.x;
@@ -75,7 +75,7 @@ void SensitivitySimulator::advance_piece_sensitivities(const Piece& piece,
   const Matrix2& e = mp.ef.exp;
   const Matrix2& f1 = mp.ef.phi1;
   const Matrix2& f2 = mp.ef.phi2;
-  for (int p = 0; p < kParams; ++p) {
+  for (int p = 0; p < kModelSlots; ++p) {
     // G linear over the piece: trapezoid mean and chord slope, then as the state's forcing.
     const double gbar = 0.5 * (ga[p] + gb[p]);
     const double gslope = (gb[p] - ga[p]) / tau;

@@ -4,6 +4,7 @@
 
 #include "refine/covariance.hpp"
 #include "refine/stages.hpp"
+#include "refine/validation.hpp"
 
 namespace scp::refine {
 
@@ -45,13 +46,35 @@ void publish_residuals(const FitContext& ctx, const FitState& state, const PassR
                        FitResult& result) {
   const std::size_t n = ctx.window.size();
   const std::array<std::size_t, 2> parameters =
-      parameters_per_channel(free_slots(ctx.settings.known));
+      parameters_per_channel(free_slots(ctx.settings.known, ctx.settings.nuisance));
   result.residual_rms = Vector2(std::sqrt(pass.rss[0] / static_cast<double>(n)),
                                 std::sqrt(pass.rss[1] / static_cast<double>(n)));
   result.noise_sigma = ctx.settings.sample_timing_jitter
                            ? Vector2(std::sqrt(state.noise.x), std::sqrt(state.noise.tbar))
                            : Vector2(std::sqrt(pass.rss[0] / dof(n, parameters[0])),
                                      std::sqrt(pass.rss[1] / dof(n, parameters[1])));
+}
+
+// The validation of the final pass (refine/validation.hpp): time constants from θ̂ at the window's
+// mean measured T̄, the declared noise, the sensitivities of the free slots projected off, and the
+// targeted tests of the nuisance terms the fit estimates switched off.
+ValidationSettings final_validation(const FitContext& ctx, const ParamVector& p,
+                                    const FreeMask& free) {
+  double mean_tbar = 0.0;
+  for (const WindowSample& w : ctx.window) mean_tbar += w.tbar;
+  mean_tbar /= static_cast<double>(ctx.window.size());
+  const ModelTimeConstants tc = model_time_constants(theta_of(p), mean_tbar);
+  ValidationSettings v;
+  v.mechanical_time_constant_s = tc.mechanical_s;
+  v.thermal_time_constant_s = tc.thermal_s;
+  v.declared_noise = ctx.settings.declared_noise;
+  v.jacobian_columns = kParams;
+  for (int i = 0; i < kParams; ++i) v.fixed_columns[static_cast<std::size_t>(i)] = !free[i];
+  const auto disable = [&v](ValidationTest t) { v.disabled[static_cast<std::size_t>(t)] = true; };
+  if (free[kXZeroSlot]) disable(ValidationTest::kDisplacementZero);
+  if (free[kAmbientOffsetSlot]) disable(ValidationTest::kAmbientOffset);
+  if (free[kAmbientDriftSlot]) disable(ValidationTest::kAmbientDrift);
+  return v;
 }
 
 }  // namespace
@@ -62,13 +85,19 @@ CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, Fi
   PassSettings ps = joint_pass_settings(ctx.settings, state);
   ps.hac_bandwidth = lags + 1;
   ps.batches = ctx.settings.covariance_batches;
+  const FreeMask free = free_slots(ctx.settings.known, ctx.settings.nuisance);
+  ResidualValidator validator(theta_of(state.p), final_validation(ctx, state.p, free));
+  ps.validator = &validator;
   const PassResult pass = ctx.budget.pass(ctx.window, state.p, ps);
   result.evaluations = ctx.budget.evaluations();
   if (pass.cancelled) {
     out.stop = StopReason::cancelled;
     return out;
   }
-  const FreeMask free = free_slots(ctx.settings.known);
+  if (pass.finite) {
+    result.validation = validator.finish();
+    result.validated = true;
+  }
   ParamMatrix white = ParamMatrix::Zero(), hac = ParamMatrix::Zero();
   const bool white_ok = pass.finite && inverse_on_free(pass.jtwj, free, white);
   out.definite = white_ok && sandwich_on_free(pass.jtwj, pass.long_run, free, hac);
@@ -88,6 +117,11 @@ CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, Fi
     out.stop = add_input_delay_error(ctx, state, ps, pass, white, result);
     if (out.stop != StopReason::none) return out;
   }
+  const auto sigma_of = [&hac](int slot) { return std::sqrt(std::max(hac(slot, slot), 0.0)); };
+  result.nuisance.x_zero.sigma = free[kXZeroSlot] ? sigma_of(kXZeroSlot) : 0.0;
+  result.nuisance.ambient_offset.sigma =
+      free[kAmbientOffsetSlot] ? sigma_of(kAmbientOffsetSlot) : 0.0;
+  result.nuisance.ambient_drift.sigma = free[kAmbientDriftSlot] ? sigma_of(kAmbientDriftSlot) : 0.0;
   result.sigma_white = result.covariance_white.diagonal().cwiseMax(0.0).cwiseSqrt();
   result.sigma = result.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
   publish_residuals(ctx, state, pass, result);

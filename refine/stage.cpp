@@ -109,8 +109,8 @@ std::array<std::size_t, 2> parameters_per_channel(const FreeMask& free) {
   std::array<std::size_t, 2> count{};
   for (int i = 0; i < kParams; ++i) {
     if (!free[static_cast<std::size_t>(i)]) continue;
-    ++count[0];
-    if (acts_on_tbar(i)) ++count[1];
+    if (in_x_output(i)) ++count[0];
+    if (in_tbar_output(i)) ++count[1];
   }
   return count;
 }

@@ -26,10 +26,14 @@ ParamVector start_point(std::span<const WindowSample> window, const Vector6& the
 // The thermal block's slots (θ5, θ6 unless known, T̄0) and its passes (T̄ alone: the thermal block
 // does not see x).
 FreeMask thermal_slots(const std::array<bool, kThetaSize>& known);
+// The same with the T̄ nuisance terms (ambient offset and drift) unless FitSettings fixes them.
+FreeMask thermal_slots(const FitSettings& settings);
 PassSettings thermal_pass_settings();
 
 // The mechanical block's slots: θ1..θ4 unless known, x0, ẋ0.
 FreeMask mechanical_slots(const std::array<bool, kThetaSize>& known);
+// The same with the displacement sensor's zero unless FitSettings fixes it.
+FreeMask mechanical_slots(const FitSettings& settings);
 
 // (a) θ5, θ6, T̄0 on T̄ alone; sets the noise variance of T̄ and the model's T̄ range.
 StopReason fit_thermal(FitContext& ctx, FitState& state);
@@ -58,7 +62,8 @@ struct CovarianceOutcome {
 };
 CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, FitResult& result);
 
-// The verdict on the solution: the first check it fails (model_unstable, fast_pole_unresolved,
+// The verdict on the solution over the T̄ the window saw and the steady T̄ of its largest V² at θ:
+// the first check it fails (model_unstable, fast_pole_unresolved,
 // covariance_singular, input_delay_at_limit), or StopReason::none.
 StopReason verdict(const FitContext& ctx, const FitState& state,
                    const CovarianceOutcome& covariance);

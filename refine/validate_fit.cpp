@@ -12,7 +12,7 @@ double mean_square_voltage(const WindowSample& prev, const WindowSample& cur,
   double tau = 0.0, sum = 0.0;
   for (int i = 0; i < n; ++i) {
     tau += pieces[i].tau;
-    sum += pieces[i].tau * pieces[i].u;
+    sum += pieces[i].tau * mean_input(pieces[i]);
   }
   return tau > 0.0 ? sum / tau : cur.voltage * cur.voltage;
 }
@@ -31,6 +31,10 @@ ValidationReport validate_fit(std::span<const WindowSample> window, const FitRes
   }
   settings.jacobian_columns = kParams;
   for (int i = 0; i < 6; ++i) settings.fixed_columns[static_cast<std::size_t>(i)] = known[i];
+  // The nuisance terms the fit held are not in its span either.
+  settings.fixed_columns[kXZeroSlot] = !fit.nuisance.x_zero.estimated;
+  settings.fixed_columns[kAmbientOffsetSlot] = !fit.nuisance.ambient_offset.estimated;
+  settings.fixed_columns[kAmbientDriftSlot] = !fit.nuisance.ambient_drift.estimated;
   ResidualValidator validator(fit.theta, settings);
   SensitivitySimulator sim(fit.theta, fit.initial_state);
   for (std::size_t k = 0; k < window.size(); ++k) {
@@ -39,14 +43,18 @@ ValidationReport validate_fit(std::span<const WindowSample> window, const FitRes
       sim.advance(window[k - 1], window[k], fit.input_delay_s);
       u = mean_square_voltage(window[k - 1], window[k], fit.input_delay_s);
     }
-    const ParamVector& jx = sim.dx();
-    const ParamVector& jt = sim.dtbar();
+    ParamVector jx = sim.dx(), jt = sim.dtbar();
+    const double since = window[k].t - window.front().t;
+    jx[kXZeroSlot] = 1.0;
+    jt[kAmbientOffsetSlot] = 1.0;
+    jt[kAmbientDriftSlot] = since;
     ValidationSample s;
     s.t = window[k].t;
     s.x = window[k].x;
-    s.x_model = sim.state().x;
+    s.x_model = sim.state().x + fit.nuisance.x_zero.value;
     s.tbar = window[k].tbar;
-    s.tbar_model = sim.state().tbar;
+    s.tbar_model = sim.state().tbar + fit.nuisance.ambient_offset.value +
+                   fit.nuisance.ambient_drift.value * since;
     s.thermal_input = u;
     s.mechanical_input = sim.state().tbar;
     s.jacobian_x = std::span<const double>(jx.data(), kParams);

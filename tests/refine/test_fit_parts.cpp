@@ -33,6 +33,9 @@ TEST(Parameters, TheSlotsFollowThePapersTheta) {
   std::set<int> slots(kMechanicalTheta.begin(), kMechanicalTheta.end());
   slots.insert(kThermalTheta.begin(), kThermalTheta.end());
   slots.insert({kX0, kXdot0, kTbar0});
+  EXPECT_EQ(*slots.rbegin(), kModelSlots - 1);
+  // ... or is a nuisance term of the outputs, after them.
+  slots.insert({kXZeroSlot, kAmbientOffsetSlot, kAmbientDriftSlot});
   EXPECT_EQ(slots.size(), static_cast<std::size_t>(kParams));
   EXPECT_EQ(*slots.rbegin(), kParams - 1);
 }
@@ -52,13 +55,25 @@ TEST(Parameters, FreeSlotsAndTheChannelsTheyActOn) {
   std::array<bool, kThetaSize> known{};
   known[kStiffness] = known[kHeating] = true;
   const FreeMask free = free_slots(known);
-  for (int i = 0; i < kParams; ++i) EXPECT_EQ(free[i], i != kStiffness && i != kHeating) << i;
+  // The paper's model: its slots as `known` says, the nuisance terms held.
+  for (int i = 0; i < kModelSlots; ++i) EXPECT_EQ(free[i], i != kStiffness && i != kHeating) << i;
+  for (int i = kModelSlots; i < kParams; ++i) EXPECT_FALSE(free[i]) << i;
   // T̄ sees θ5, θ6 and T̄0 only (the thermal block does not see x); x sees every slot.
   const std::array<std::size_t, 2> per_channel = parameters_per_channel(free);
   EXPECT_EQ(per_channel[0], 7u);
   EXPECT_EQ(per_channel[1], 2u);  // θ5 and T̄0: θ6 is known
   for (int i = 0; i < kParams; ++i)
     EXPECT_EQ(acts_on_tbar(i), i == kCooling || i == kHeating || i == kTbar0) << i;
+  // The nuisance terms, free unless fixed: x's zero in x's output, the ambient's in T̄'s.
+  NuisanceSettings nuisance;
+  nuisance.x_zero.fixed = nuisance.ambient_offset.fixed = false;
+  const FreeMask with_nuisance = free_slots(known, nuisance);
+  EXPECT_TRUE(with_nuisance[kXZeroSlot]);
+  EXPECT_TRUE(with_nuisance[kAmbientOffsetSlot]);
+  EXPECT_FALSE(with_nuisance[kAmbientDriftSlot]);
+  const std::array<std::size_t, 2> counted = parameters_per_channel(with_nuisance);
+  EXPECT_EQ(counted[0], 8u);  // the seven above and x's zero
+  EXPECT_EQ(counted[1], 3u);  // θ5, T̄0 and the ambient offset
 }
 
 TEST(StopReasons, EachHasItsOwnTextAndNoneHasNone) {
@@ -88,13 +103,13 @@ TEST(StopReasons, EachHasItsOwnTextAndNoneHasNone) {
             std::string::npos);
 }
 
-TEST(FitTerms, TheDefaultsAreThePapersModelWithItsNuisanceTermsEstimated) {
+TEST(FitTerms, TheDefaultsAreThePapersModel) {
   const FitSettings settings;
   EXPECT_EQ(settings.voltage_hold, estimator::VoltageHold::zoh);
   EXPECT_EQ(settings.voltage_interval, VoltageInterval::before);
   for (const NuisanceSetting* n : {&settings.nuisance.x_zero, &settings.nuisance.ambient_offset,
                                    &settings.nuisance.ambient_drift, &settings.nuisance.sensor_lag})
-    EXPECT_FALSE(n->fixed);
+    EXPECT_TRUE(n->fixed && n->value == 0.0);
   for (const ExtensionMode m :
        {settings.extensions.resistance_tempco, settings.extensions.stiffness_softening,
         settings.extensions.cooling_tempco})

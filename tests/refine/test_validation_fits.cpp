@@ -22,13 +22,21 @@ struct Noise {
 };
 constexpr Noise kN1{1e-7, 1e-3}, kN3{1e-6, 0.1};
 
+// The paper's model: the fit's nuisance terms held at 0, so that a deviation is one the fit does
+// not model.
+FitSettings paper_model() {
+  FitSettings s;
+  s.nuisance.x_zero.fixed = s.nuisance.ambient_offset.fixed = s.nuisance.ambient_drift.fixed = true;
+  return s;
+}
+
 ValidationReport fit_and_validate(const test::Deviations& d, Noise noise, unsigned seed) {
   const auto clean =
       test::deviation_record(test::paper_actuator(), kSeconds, 1e-3, test::paper_voltage(), d);
   const auto w = test::with_noise(clean, {.x = noise.x, .tbar = noise.tbar, .seed = seed});
   Vector6 start = test::theta_of(test::paper_actuator());
   start.head<4>() *= 0.17;  // the paper law's biased estimate under noise
-  const FitResult r = fit(w, start);
+  const FitResult r = fit(w, start, paper_model());
   ValidationSettings s;
   s.declared_noise = Vector2(noise.x, noise.tbar);
   const ValidationReport v = validate_fit(w, r, s);
@@ -120,6 +128,44 @@ TEST(ValidationFits, StiffnessSofteningIsNamed) {
 TEST(ValidationFits, CoolingGrowingWithTemperatureIsNamed) {
   expect_named(
       {"0.5 %/°C, N3", {.cooling_tempco = 0.005}, kN3, ValidationTest::kCoolingTempco, 0.005, 0.5});
+}
+
+}  // namespace
+}  // namespace scp::refine
+
+namespace scp::refine {
+namespace {
+
+// Every fit validates its own final pass (FitResult::validation): a clean window is adequate in
+// both blocks, and a displacement zero the fit holds at 0 is named; estimated, its test is off and
+// the block is adequate.
+TEST(ValidationOfEveryFit, TheFinalPassIsValidated) {
+  const auto run = [](const test::Deviations& d, const FitSettings& settings) {
+    const auto clean =
+        test::deviation_record(test::paper_actuator(), kSeconds, 1e-3, test::paper_voltage(), d);
+    const auto w = test::with_noise(clean, {.x = kN1.x, .tbar = kN1.tbar, .seed = 1});
+    Vector6 start = test::theta_of(test::paper_actuator());
+    start.head<4>() *= 0.17;
+    const FitResult r = fit(w, start, settings);
+    std::printf(
+        "fit %s; validated %d, x: %s (%s), T: %s (%s)\n", r.message, r.validated,
+        verdict_name(r.validation.mechanical.verdict), test_name(r.validation.mechanical.decisive),
+        verdict_name(r.validation.thermal.verdict), test_name(r.validation.thermal.decisive));
+    return r;
+  };
+  FitSettings settings = paper_model();
+  settings.declared_noise = Vector2(kN1.x, kN1.tbar);
+  const FitResult clean = run({}, settings);
+  EXPECT_TRUE(clean.validated);
+  EXPECT_EQ(clean.validation.mechanical.verdict, Verdict::kAdequate);
+  EXPECT_EQ(clean.validation.thermal.verdict, Verdict::kAdequate);
+  const FitResult held = run({.displacement_zero = 20e-6}, settings);
+  EXPECT_EQ(held.validation.mechanical.verdict, Verdict::kStructure);
+  EXPECT_EQ(held.validation.mechanical.decisive, ValidationTest::kDisplacementZero);
+  settings.nuisance.x_zero.fixed = false;
+  const FitResult estimated = run({.displacement_zero = 20e-6}, settings);
+  EXPECT_FALSE(estimated.validation.outcome(ValidationTest::kDisplacementZero).performed);
+  EXPECT_EQ(estimated.validation.mechanical.verdict, Verdict::kAdequate);
 }
 
 }  // namespace

@@ -29,12 +29,14 @@ TEST(ValidationHook, TheFinalPassFeedsTheSameReportAsValidateFit) {
 
   s.jacobian_columns = kParams;
   s.fixed_columns[4] = true;
+  // The nuisance terms, which `fit` did not estimate.
+  s.fixed_columns[kXZeroSlot] = s.fixed_columns[kAmbientOffsetSlot] =
+      s.fixed_columns[kAmbientDriftSlot] = true;
   ResidualValidator validator(fit.theta, s);
   PassSettings ps;
   ps.weight = {1e12, 1e2};
   ps.validator = &validator;
-  ParamVector p;
-  p << fit.theta, fit.initial_state;
+  const ParamVector p = param_vector(fit.theta, fit.initial_state);
   ASSERT_TRUE(residual_pass(w, p, ps).finite);
   const ValidationReport got = validator.finish();
 

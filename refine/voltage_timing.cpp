@@ -1,0 +1,56 @@
+#include "refine/voltage_timing.hpp"
+
+#include <cmath>
+#include <limits>
+
+#include "refine/stages.hpp"
+
+namespace scp::refine {
+
+std::span<const WindowSample> prepare_window(std::span<const WindowSample> window,
+                                             estimator::VoltageHold hold, VoltageInterval interval,
+                                             std::vector<WindowSample>& storage) {
+  const bool after = interval == VoltageInterval::after;
+  const bool foh = hold == estimator::VoltageHold::foh;
+  if ((!after && !foh) || window.empty()) return window;
+  storage.assign(window.begin(), window.end());
+  if (after) {
+    for (std::size_t k = window.size() - 1; k > 0; --k) {
+      storage[k].voltage = window[k - 1].voltage;
+      storage[k].voltage_since = window[k - 1].t;
+    }
+  }
+  if (foh) {
+    for (std::size_t k = 1; k < storage.size(); ++k) storage[k].voltage_ramp = true;
+  }
+  return storage;
+}
+
+namespace {
+
+// T̄'s residual variance after the thermal stage on `window`; ∞ when it cannot be fitted.
+double thermal_residual(std::span<const WindowSample> window, const Vector6& theta_start,
+                        const FitSettings& settings) {
+  FitState state;
+  state.p = start_point(window, theta_start, settings.known);
+  if (!state.p.allFinite()) return std::numeric_limits<double>::infinity();
+  FitContext ctx(window, settings);
+  if (fit_thermal(ctx, state) != StopReason::none) return std::numeric_limits<double>::infinity();
+  return state.noise.tbar;
+}
+
+}  // namespace
+
+VoltageInterval choose_voltage_interval(std::span<const WindowSample> window,
+                                        const Vector6& theta_start, const FitSettings& settings) {
+  std::vector<WindowSample> storage;
+  const double before = thermal_residual(
+      prepare_window(window, settings.voltage_hold, VoltageInterval::before, storage), theta_start,
+      settings);
+  const double after = thermal_residual(
+      prepare_window(window, settings.voltage_hold, VoltageInterval::after, storage), theta_start,
+      settings);
+  return after < before ? VoltageInterval::after : VoltageInterval::before;
+}
+
+}  // namespace scp::refine

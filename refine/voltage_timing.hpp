@@ -1,0 +1,35 @@
+#pragma once
+// The voltage's timing relative to the samples (FitSettings::voltage_hold, voltage_interval), put
+// into the window once before the fit, so that the model's simulation and everything that rides
+// on it (sensitivities, covariance, validation) keep their one convention: WindowSample's, the
+// voltage held over the interval before its sample.
+//
+// - VoltageInterval::after (a log that writes the command issued at t): row k's voltage is moved
+//   to row k + 1 with voltage_since = t_k, so it drives (t_k, t_{k+1}].
+// - VoltageHold::foh (V varying continuously, each row's V the value at its instant; with `after`
+//   the value reached at the next instant): V is linear between the rows, V² quadratic
+//   (WindowSample::voltage_ramp), and the model integrates it exactly (ThermalPiece), the
+//   mechanical block seeing T̄'s exact mean over each piece.
+
+#include <span>
+#include <vector>
+
+#include "refine/fit.hpp"
+
+namespace scp::refine {
+
+// `window` as the model reads it under `hold` and `interval` (before or after): `window` itself
+// when nothing changes (zoh, before), else `storage` filled and returned.
+std::span<const WindowSample> prepare_window(std::span<const WindowSample> window,
+                                             estimator::VoltageHold hold, VoltageInterval interval,
+                                             std::vector<WindowSample>& storage);
+
+// VoltageInterval::estimate: before or after, whichever leaves the thermal stage's fit (θ5, θ6,
+// T̄0 on T̄ alone, from `theta_start` as fit() starts) the smaller residual. A row's interval is a
+// whole sample period of the voltage's timing, which T̄ resolves to a fraction of a µs
+// (refine/input_delay.hpp); x could not tell (θ1..θ4's common scale is a sub-millisecond lag).
+// `before` when neither can be fitted.
+VoltageInterval choose_voltage_interval(std::span<const WindowSample> window,
+                                        const Vector6& theta_start, const FitSettings& settings);
+
+}  // namespace scp::refine
