@@ -5,6 +5,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 
+#include "daemon/outputs/metrics/exposition.hpp"
 #include "daemon/outputs/server/render.hpp"
 #include "tests/server/server_fixture.hpp"
 
@@ -289,6 +290,34 @@ TEST(Render, BestNamesOnlyAnEstimateWhoseValidationPassed) {
   r.validated = false;  // a converged fit nobody validated is not recommended either
   r.paper_validation.mechanical.verdict = scp::refine::Verdict::kAdequate;
   EXPECT_EQ(json::parse(render_estimate(s.estimate, &r, 12.5))["best"], "paper");
+}
+
+// The metrics carry each estimate's verdict per block as a state set, its fit %, and which
+// estimate is best (none included): what ESTIMATE says, so a dashboard cannot show a failed σ as
+// trustworthy.
+TEST(Render, MetricsCarryTheVerdictPerBlockAndBest) {
+  const PublishedState s = test::sample_state();
+  refine::RefinedView r = sample_refined();
+  r.validation.mechanical.fit_percent = 99.5;
+  r.validation.thermal.verdict = scp::refine::Verdict::kStructure;
+  r.paper_validation.thermal.verdict = scp::refine::Verdict::kUntested;
+  const json estimate = json::parse(render_estimate(s.estimate, &r, 12.5));
+  const std::string text = metrics::exposition(json::object(), estimate, "bench-a");
+  const auto has = [&](const std::string& part) { return text.find(part) != std::string::npos; };
+  EXPECT_TRUE(
+      has("scp_estimator_validation_verdict{actuator=\"bench-a\",estimator=\"refined\","
+          "block=\"thermal\",verdict=\"structure\"} 1"))
+      << text;
+  EXPECT_TRUE(
+      has("scp_estimator_validation_verdict{actuator=\"bench-a\",estimator=\"refined\","
+          "block=\"thermal\",verdict=\"adequate\"} 0"))
+      << text;
+  EXPECT_TRUE(
+      has("scp_estimator_validation_fit_percent{actuator=\"bench-a\",estimator="
+          "\"refined\",block=\"mechanical\"} 99.5"))
+      << text;
+  EXPECT_TRUE(has("scp_estimator_best{actuator=\"bench-a\",estimate=\"none\"} 1")) << text;
+  EXPECT_TRUE(has("scp_estimator_best_refined{actuator=\"bench-a\"} 0")) << text;
 }
 
 TEST(Render, StatusCarriesTheRefinementCounters) {

@@ -106,6 +106,8 @@ BestChoice best_estimate(const RefinedView* v, double now_t) {
           : now_t - v->fitted_at_t > 3.0 * v->interval_s ? "the refined fit is older than 3 "
                                                            "refine.interval_s"
                                                          : "the refined σ is not finite";
+    // What its validation found often says why (a missing term sends the solver astray).
+    if (v->validated && !passed(v->validation)) why += " (" + failure_advice(v->validation) + ")";
   } else if (!v->validated) {
     why = "the refined fit is not validated";
   } else if (!passed(v->validation)) {

@@ -63,6 +63,35 @@ bool better(const scp::refine::FitResult& a, const scp::refine::FitResult& b) no
   return std::isfinite(ca) && (!std::isfinite(cb) || ca < cb);
 }
 
+// What the fit found, into the view (plain copies; the counters and the bias test are the
+// caller's).
+void copy_result(const scp::refine::FitResult& r, RefinedView& v) noexcept {
+  v.theta_hat = to_array6(r.theta);
+  v.sigma = to_array6(r.sigma);
+  v.sigma_inflation = to_array6(r.sigma_inflation);
+  v.t_begin = r.t_begin;
+  v.t_end = r.t_end;
+  v.samples = r.samples;
+  v.residual_rms = {r.residual_rms[0], r.residual_rms[1]};
+  v.noise_sigma = {r.noise_sigma[0], r.noise_sigma[1]};
+  v.input_delay_estimated = r.input_delay_estimated;
+  v.input_delay_s = r.input_delay_s;
+  v.input_delay_sigma_s = r.input_delay_sigma_s;
+  v.input_delay_sigma_inflation = r.input_delay_sigma_inflation;
+  v.sample_timing_sigma_s = r.sample_timing_sigma_s;
+  v.outliers = r.outliers;
+  // A result with a non-finite θ̂ is no result, whatever the solver said.
+  v.converged = r.converged && all_finite(v.theta_hat);
+  v.iterations = r.iterations;
+  v.voltage_interval = r.voltage_interval;
+  v.nuisance = r.nuisance;
+  v.extensions = r.extensions;
+  v.validated = r.validated;
+  v.validation = r.validation;
+  v.message.fill('\0');
+  std::strncpy(v.message.data(), r.message != nullptr ? r.message : "", v.message.size() - 1);
+}
+
 }  // namespace
 
 Refiner::Refiner(const config::RefineSettings& settings,
@@ -222,30 +251,7 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   v.fitted_at_unix_ns = wall_ns;
   v.duration_s = duration;
   v.seed = seed;
-  v.theta_hat = to_array6(r.theta);
-  v.sigma = to_array6(r.sigma);
-  v.sigma_inflation = to_array6(r.sigma_inflation);
-  v.t_begin = r.t_begin;
-  v.t_end = r.t_end;
-  v.samples = r.samples;
-  v.residual_rms = {r.residual_rms[0], r.residual_rms[1]};
-  v.noise_sigma = {r.noise_sigma[0], r.noise_sigma[1]};
-  v.input_delay_estimated = r.input_delay_estimated;
-  v.input_delay_s = r.input_delay_s;
-  v.input_delay_sigma_s = r.input_delay_sigma_s;
-  v.input_delay_sigma_inflation = r.input_delay_sigma_inflation;
-  v.sample_timing_sigma_s = r.sample_timing_sigma_s;
-  v.outliers = r.outliers;
-  // A result with a non-finite θ̂ is no result, whatever the solver said.
-  v.converged = r.converged && all_finite(v.theta_hat);
-  v.iterations = r.iterations;
-  v.voltage_interval = r.voltage_interval;
-  v.nuisance = r.nuisance;
-  v.extensions = r.extensions;
-  v.validated = r.validated;
-  v.validation = r.validation;
-  v.message.fill('\0');
-  std::strncpy(v.message.data(), r.message != nullptr ? r.message : "", v.message.size() - 1);
+  copy_result(r, v);
 
   if (v.converged) {
     ++v.converged_fits;
