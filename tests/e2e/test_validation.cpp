@@ -3,21 +3,11 @@
 // real one is (driver.sim.tempco, .ambient, .sensor). Offline batch runs: deterministic.
 
 #include <cstdio>
-#include <sstream>
 
 #include "tests/e2e/e2e_util.hpp"
 
 namespace scp::test {
 namespace {
-
-json summary_of(const ProcessResult& r) {
-  std::istringstream lines(r.out);
-  std::string line, last;
-  while (std::getline(lines, line)) {
-    if (!line.empty()) last = line;
-  }
-  return json::parse(last);
-}
 
 // The N1 sensors, declared to the validation as they are.
 json noisy_bench(const TempDir& dir, const json& deviations) {
@@ -46,7 +36,7 @@ TEST(Validation, CleanNoisyRunIsAdequateAndRecommendsTheRefinedEstimate) {
   const ProcessResult r = batch(dir, noisy_bench(dir, json::object()), "clean.yaml");
   ASSERT_EQ(r.exit_code, 0) << r.err << r.out;
   std::printf("%s", r.out.c_str());
-  const json s = summary_of(r);
+  const json s = batch_summary(r);
   ASSERT_TRUE(s.contains("refined")) << s.dump();
   ASSERT_TRUE(s["refined"].contains("validation")) << s["refined"].dump();
   const json& v = s["refined"]["validation"];
@@ -72,7 +62,7 @@ TEST(Validation, UnmodelledResistanceTempcoIsNamedAndNeverRecommended) {
   const ProcessResult r = batch(dir, cfg, "tempco.yaml");
   ASSERT_EQ(r.exit_code, 0) << r.err << r.out;
   std::printf("%s", r.out.c_str());
-  const json s = summary_of(r);
+  const json s = batch_summary(r);
   ASSERT_TRUE(s.contains("refined")) << s.dump();
   ASSERT_TRUE(s["refined"].contains("validation")) << s["refined"].dump();
   const json& thermal = s["refined"]["validation"]["thermal"];
