@@ -40,6 +40,12 @@ std::unique_ptr<drivers::Driver> batch_driver(config::DaemonConfig& cfg,
     cfg.loop.period_s = replay_driver->period();
     cfg.estimator.nominal_period = replay_driver->period();
   }
+  // A file without V_since does not say which interval its voltages belong to (a lab script may
+  // log the command issued at t): `auto` lets the refinement estimate it.
+  if (cfg.refine.voltage_interval_choice == config::VoltageIntervalChoice::automatic &&
+      !replay_driver->trace().voltage_since_column) {
+    cfg.refine.voltage_interval = scp::refine::VoltageInterval::estimate;
+  }
   replay = replay_driver.get();
   return replay_driver;
 }
@@ -197,6 +203,23 @@ std::string refined_heading(const nlohmann::json& s) {
   return line;
 }
 
+// One estimate's validation (ESTIMATE refined.validation or paper_validation), a line per block:
+// the verdict, the decisive test, fit % and the noise ratio.
+std::string validation_lines(const char* who, const nlohmann::json& v) {
+  std::string out;
+  for (const char* block : {"mechanical", "thermal"}) {
+    const nlohmann::json& b = v[block];
+    char line[240];
+    std::snprintf(line, sizeof line, "%s validation %s: %s (%s), fit %s %%, noise ratio %s\n", who,
+                  block, b.value("verdict", std::string("-")).c_str(),
+                  b.value("decisive", std::string("-")).c_str(),
+                  number_or_dash(b.value("fit_percent", nlohmann::json()), "%.2f").c_str(),
+                  number_or_dash(b.value("noise_ratio", nlohmann::json()), "%.3g").c_str());
+    out += line;
+  }
+  return out;
+}
+
 // The paper law's θ̂ beside the refined one, and which the daemon recommends.
 std::string refined_table(const nlohmann::json& s) {
   const nlohmann::json& r = s["refined"];
@@ -229,6 +252,10 @@ std::string refined_table(const nlohmann::json& s) {
                 s["paper_biased"].value("thermal", false) ? "yes" : "no",
                 s["best"].get<std::string>().c_str());
   out += line;
+  if (r.contains("validation")) out += validation_lines("refined", r["validation"]);
+  if (s.contains("paper_validation")) out += validation_lines("paper", s["paper_validation"]);
+  if (s.contains("best_reason"))
+    out += "best_reason: " + s["best_reason"].get<std::string>() + "\n";
   return out;
 }
 

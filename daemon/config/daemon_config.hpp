@@ -2,6 +2,7 @@
 // The daemon's whole configuration as plain structs, filled from YAML by declare_daemon_keys()
 // (daemon_keys.cpp), where every key is declared exactly once with its default, range and doc.
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -14,6 +15,7 @@
 #include "drivers/sim/sim_settings.hpp"
 #include "estimator/estimator.hpp"
 #include "excitation/excitation_settings.hpp"
+#include "refine/fit_terms.hpp"
 
 namespace scp::config {
 
@@ -54,6 +56,20 @@ constexpr const char* to_string(VelocityMethod v) noexcept {
 constexpr const char* to_string(ExcitationProfile v) noexcept {
   return name_of(kExcitationProfiles, v);
 }
+// Which interval a row's voltage belongs to (refine/fit_terms.hpp); automatic: `before` (the
+// daemon's own drivers and recordings), `estimate` for a --replay of a file without V_since.
+enum class VoltageIntervalChoice : std::uint8_t { automatic, before, after, estimate };
+inline constexpr NameTable<VoltageIntervalChoice, 4> kVoltageIntervals{
+    {{VoltageIntervalChoice::automatic, "auto"},
+     {VoltageIntervalChoice::before, "before"},
+     {VoltageIntervalChoice::after, "after"},
+     {VoltageIntervalChoice::estimate, "estimate"}}};
+
+inline constexpr NameTable<scp::refine::ExtensionMode, 3> kExtensionModes{
+    {{scp::refine::ExtensionMode::off, "off"},
+     {scp::refine::ExtensionMode::on, "on"},
+     {scp::refine::ExtensionMode::automatic, "auto"}}};
+
 constexpr const char* to_string(LinkTiming v) noexcept {
   return name_of(kLinkTimings, v);
 }
@@ -138,6 +154,16 @@ struct RefineSettings {
   LinkTiming link_timing = LinkTiming::automatic;
   bool estimate_link_timing = false;
   double max_input_delay_s = 0.005;  // the delay is searched within ± this
+  // Which interval a row's voltage was applied over; resolved into voltage_interval (the batch
+  // run resolves `auto` for a replayed file without V_since into estimate).
+  VoltageIntervalChoice voltage_interval_choice = VoltageIntervalChoice::automatic;
+  scp::refine::VoltageInterval voltage_interval = scp::refine::VoltageInterval::before;
+  // The nuisance terms (estimated unless fixed) and the model's extensions (issue 28).
+  scp::refine::NuisanceSettings nuisance;
+  scp::refine::ExtensionSettings extensions;
+  // The sensors' declared white-noise σ (x in m, T̄ in °C; 0 = not declared), from sensors.noise:
+  // the validation's noise-ratio tests.
+  std::array<double, 2> declared_noise{};
 };
 
 // The Prometheus textfile the daemon writes (docs/metrics: node_exporter's textfile collector).

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -67,7 +68,7 @@ void declare_actuator(Binder actuator, ActuatorSettings& out) {
                   "electrical resistance R of the heater (0 = unknown)");
 }
 
-void declare_sim(Binder sim, drivers::sim::SimSettings& out) {
+void declare_sim(Binder& sim, drivers::sim::SimSettings& out) {
   Binder plant = sim.section("plant", "physical parameters of the simulated actuator (Table I)");
   auto& p = out.plant;
   plant.number("m", p.m, 0.1, 1e-6, 1e3, "mass in kg");
@@ -108,13 +109,50 @@ void declare_sim(Binder sim, drivers::sim::SimSettings& out) {
                "temperature reported by temperature_out_of_range, °C");
 }
 
+// How the simulated bench departs from the paper's model (issue 28): the same deviations a real
+// bench has, for tests of the refinement's nuisance terms, extensions and validation.
+void declare_sim_bench(Binder& sim, drivers::sim::SimSettings& out) {
+  auto& d = out.deviations;
+  Binder tempco = sim.section("tempco",
+                              "temperature coefficients of the simulated plant, 1/°C of "
+                              "T̄ from the true ambient (0 = the paper's model)");
+  tempco.number("R", d.resistance_tempco, 0.0, -0.02, 0.02,
+                "heater resistance R(T̄) = R0·(1 + ρT̄); a nickel heater has 0.0059");
+  tempco.number("k_softening", d.stiffness_softening, 0.0, -0.02, 0.02,
+                "stiffness softening k(T̄) = k0·(1 − κT̄); nylon softens when heated");
+  tempco.number("lambda", d.cooling_tempco, 0.0, -0.02, 0.02,
+                "cooling λ(T̄) = λ0·(1 + γT̄); free convection grows with T");
+  Binder ambient = sim.section("ambient", "the true ambient of the simulated bench");
+  ambient.number("offset_c", d.ambient_offset_c, 0.0, -50.0, 50.0,
+                 "°C the true ambient lies above actuator.ambient_c");
+  ambient.number("drift_c_per_h", d.ambient_drift_c_per_h, 0.0, -100.0, 100.0,
+                 "°C per hour the true ambient moves (linear)");
+  Binder sensor = sim.section("sensor", "the simulated sensors' systematic errors");
+  sensor.number("x_zero_m", out.x_zero, 0.0, -1.0, 1.0,
+                "what the displacement sensor reads at rest (m)");
+  sensor.number("temperature_lag_s", d.temperature_lag_s, 0.0, 0.0, 100.0,
+                "first-order lag of the temperature sensor, s (0 = none, else at least 0.001: "
+                "the RK4 sub-steps must resolve it); a fine thermocouple lags 0.1-0.5 s");
+  if (d.temperature_lag_s > 0.0 && d.temperature_lag_s < 1e-3) {
+    sensor.fail("temperature_lag_s",
+                "must be 0 (no lag) or at least 0.001 s; the plant's sub-steps cannot resolve a "
+                "shorter lag");
+  }
+  sim.boolean("measure_current", out.measure_current, false,
+              "the simulated DAQ also measures the heater current I = V/R(T̄)");
+  sim.number("noise_current", out.noise_current, 0.0, 0.0, 10.0,
+             "Gaussian noise on the heater current, standard deviation in A");
+}
+
 void declare_driver(Binder driver, DriverSelection& out) {
   driver.choice("type", out.type, DriverType::sim, kDriverTypes, "which device the loop talks to");
   driver.number("start_timeout_s", out.start_timeout_s, 0.0, 0.0, 86400.0,
                 "s a device absent or silent at start is awaited (STARTING, 0 V, retried with "
                 "back-off) before the daemon exits with 69 (EX_UNAVAILABLE, not restarted by the "
                 "unit); 0 = wait without limit");
-  declare_sim(driver.section("sim", "the simulated SCP actuator (type: sim)"), out.sim);
+  Binder sim = driver.section("sim", "the simulated SCP actuator (type: sim)");
+  declare_sim(sim, out.sim);
+  declare_sim_bench(sim, out.sim);
   Binder replay = driver.section("replay", "a recorded CSV played back (type: replay)");
   replay.text("file", out.replay.file, "",
               "CSV with header t,x,xdot,T,V (SI units, T in °C; t increasing, gaps allowed)");
@@ -268,7 +306,7 @@ void declare_state(Binder state, StateSettings& out) {
                "must not seed the estimator");
 }
 
-void declare_refine(Binder refine, RefineSettings& out) {
+void declare_refine(Binder& refine, RefineSettings& out) {
   refine.boolean("enabled", out.enabled, true,
                  "run the output-error refinement beside the paper's law (a worker thread "
                  "below the loop; inline in --offline runs)");
@@ -310,6 +348,74 @@ void declare_refine(Binder refine, RefineSettings& out) {
   refine.number("max_input_delay_s", out.max_input_delay_s, 0.005, 1e-6, 1.0,
                 "the delay is searched within ± this; a fit whose delay lands on the limit does "
                 "not converge");
+}
+
+// A nuisance term: `estimate` (the default) or the number it is held at, in [min, max] × `scale`
+// of the key's unit (the fit's unit is the key's times scale).
+std::string short_number(double v) {
+  std::ostringstream out;
+  out << v;
+  return out.str();
+}
+
+void nuisance_key(Binder& b, std::string_view key, scp::refine::NuisanceSetting& out, double min,
+                  double max, double scale, const std::string& doc) {
+  std::string text;
+  b.text(key, text, "estimate",
+         "`estimate`, or the number it is held at in [" + short_number(min) + ", " +
+             short_number(max) + "]: " + doc);
+  out = {};
+  if (text == "estimate") return;
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(v) || v < min ||
+      v > max) {
+    b.fail(key, "'" + text + "' is neither `estimate` nor a number in [" + short_number(min) +
+                    ", " + short_number(max) + "] (" + doc + ")");
+  }
+  out.fixed = true;
+  out.value = v * scale;
+}
+
+// What the refined fit is told about a real bench (refine/fit_terms.hpp, issue 28).
+void declare_refine_bench(Binder& refine, RefineSettings& out) {
+  refine.choice("voltage_interval", out.voltage_interval_choice, VoltageIntervalChoice::automatic,
+                kVoltageIntervals,
+                "which interval a row's voltage was applied over: `before` its sample (the "
+                "daemon's drivers and recordings, V_since), `after` it (a log writing the command "
+                "issued at t), `estimate` (fit both, keep the better). `auto`: before, except "
+                "estimate for a --replay of a file without a V_since column");
+  Binder nuisance = refine.section("nuisance",
+                                   "nuisance terms of a real bench, estimated beside θ unless "
+                                   "held at a declared value (published in refined.nuisance)");
+  nuisance_key(nuisance, "x_zero", out.nuisance.x_zero, -1.0, 1.0, 1.0,
+               "what the displacement sensor reads at the true rest position, m");
+  nuisance_key(nuisance, "ambient_offset", out.nuisance.ambient_offset, -50.0, 50.0, 1.0,
+               "°C the true ambient lies above actuator.ambient_c");
+  nuisance_key(nuisance, "ambient_drift", out.nuisance.ambient_drift, -100.0, 100.0, 1.0 / 3600.0,
+               "°C per hour the ambient moves over the window");
+  nuisance_key(nuisance, "sensor_lag", out.nuisance.sensor_lag, 0.0, 100.0, 1.0,
+               "first-order lag of the temperature sensor, s (0: none)");
+  Binder ext = refine.section("extensions",
+                              "extensions of the paper's model: off, on, or auto (kept where an "
+                              "information criterion says it earns its place in the window)");
+  ext.choice("resistance_tempco", out.extensions.resistance_tempco, scp::refine::ExtensionMode::off,
+             kExtensionModes, "R = R0·(1 + ρT̄): the heating θ6·V²/(1 + ρT̄)");
+  ext.choice("stiffness_softening", out.extensions.stiffness_softening,
+             scp::refine::ExtensionMode::off, kExtensionModes,
+             "k = k0·(1 − κT̄): a force +θ3·κ·T̄·x");
+  ext.choice("cooling_tempco", out.extensions.cooling_tempco, scp::refine::ExtensionMode::off,
+             kExtensionModes, "λ = λ0·(1 + γT̄): the cooling −θ5·(1 + γT̄)·T̄");
+}
+
+void declare_sensors(Binder sensors, RefineSettings& out) {
+  Binder noise = sensors.section("noise",
+                                 "the sensors' white-noise standard deviation, as their data "
+                                 "sheets or a rest measurement say (0 = not declared): the "
+                                 "refinement's validation tests the residuals against it");
+  noise.number("x_m", out.declared_noise[0], 0.0, 0.0, 1.0, "of the displacement sensor, m");
+  noise.number("temperature_c", out.declared_noise[1], 0.0, 0.0, 100.0,
+               "of the temperature sensor, °C");
 }
 
 void declare_metrics(Binder metrics, MetricsSettings& out) {
@@ -414,8 +520,10 @@ void declare_daemon_keys(Binder& root, DaemonConfig& out) {
   declare_safety(root.section("safety", "limits that never depend on the estimator"), out.safety);
   declare_socket(root.section("socket", "the local JSON API"), out.socket);
   declare_state(root.section("state", "checkpoints of what the estimator learned"), out.state);
-  declare_refine(root.section("refine", "the output-error refinement beside the paper's law"),
-                 out.refine);
+  Binder refine = root.section("refine", "the output-error refinement beside the paper's law");
+  declare_refine(refine, out.refine);
+  declare_refine_bench(refine, out.refine);
+  declare_sensors(root.section("sensors", "what is known of the sensors"), out.refine);
   declare_metrics(root.section("metrics",
                                "Prometheus metrics for node_exporter's textfile "
                                "collector (scp-estimatorctl metrics prints the same)"),

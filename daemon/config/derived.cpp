@@ -17,6 +17,17 @@ void derive_settings(DaemonConfig& cfg) {
   cfg.refine.estimate_link_timing =
       cfg.refine.link_timing == LinkTiming::estimate ||
       (cfg.refine.link_timing == LinkTiming::automatic && cfg.driver.type != DriverType::sim);
+  // The daemon's own drivers stamp when each voltage took effect (V_since): the interval before.
+  switch (cfg.refine.voltage_interval_choice) {
+    case VoltageIntervalChoice::after:
+      cfg.refine.voltage_interval = scp::refine::VoltageInterval::after;
+      break;
+    case VoltageIntervalChoice::estimate:
+      cfg.refine.voltage_interval = scp::refine::VoltageInterval::estimate;
+      break;
+    default:
+      cfg.refine.voltage_interval = scp::refine::VoltageInterval::before;
+  }
   if (cfg.excitation.profile == ExcitationProfile::paper) {
     cfg.excitation.settings = excitation::paper_excitation();
   }

@@ -321,6 +321,7 @@ Trace parse_rows(std::istream& in, const std::string& path, std::size_t& header_
   LineReader reader(in);
   const Header h = read_header(reader, path);
   Trace trace;
+  trace.voltage_since_column = h.has_since;
   std::size_t previous_line = 0;
   std::vector<std::string_view> fields;
   std::string_view line;
@@ -385,6 +386,7 @@ Trace load_traces(const std::vector<std::string>& paths) {
   for (const auto& file : files) {
     std::size_t header_line = 0;
     Trace part = load_rows(file, header_line);
+    all.voltage_since_column = all.voltage_since_column || part.voltage_since_column;
     if (part.rows.empty()) {
       all.files.push_back(file);  // a header only: the daemon stopped right after a rotation
       continue;

@@ -45,6 +45,9 @@ struct Trace {
   std::size_t gaps = 0;            // steps longer than 1.5 periods (missed periods, faults)
   double max_step = 0.0;           // s, the longest step
   std::vector<std::string> files;  // the files read, in order
+  // A file had a V_since column: it says which interval each row's voltage was applied over (the
+  // daemon's own recordings); without it the refinement estimates that (refine.voltage_interval).
+  bool voltage_since_column = false;
 };
 
 Trace load_trace(const std::string& path);

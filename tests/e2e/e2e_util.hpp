@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <filesystem>
+#include <sstream>
 #include <string>
 #include <thread>
 
@@ -38,6 +39,16 @@ inline std::uint64_t loop_count(const json& status, const char* key) {
 
 inline bool contains(const std::string& text, const std::string& part) {
   return text.find(part) != std::string::npos;
+}
+
+// The last line a batch run (--offline, --replay) prints is its JSON summary.
+inline json batch_summary(const ProcessResult& r) {
+  std::istringstream lines(r.out);
+  std::string line, last;
+  while (std::getline(lines, line)) {
+    if (!line.empty()) last = line;
+  }
+  return json::parse(last);
 }
 
 }  // namespace scp::test

@@ -12,16 +12,6 @@
 namespace scp::test {
 namespace {
 
-// The last line a batch run prints is its JSON summary.
-json summary_of(const ProcessResult& r) {
-  std::istringstream lines(r.out);
-  std::string line, last;
-  while (std::getline(lines, line)) {
-    if (!line.empty()) last = line;
-  }
-  return json::parse(last);
-}
-
 // Good lab sensors (the N1): the paper's law is biased toward zero by a common factor on
 // θ1..θ4 while its σ claims otherwise; the refined fit must land within a few of its own σ of the
 // truth, be recommended, and flag the paper law's mechanical block. If the hand-off, the window,
@@ -39,7 +29,7 @@ TEST(Refined, NoisyBatchRunRecommendsTheRefinedEstimateAndFlagsThePaperLaw) {
       Seconds(900));
   ASSERT_EQ(r.exit_code, 0) << r.err << r.out;
   std::printf("%s", r.out.c_str());
-  const json s = summary_of(r);
+  const json s = batch_summary(r);
   ASSERT_TRUE(s.contains("refined")) << s.dump();
   const json& ref = s["refined"];
   EXPECT_EQ(ref["converged"], true) << ref.dump();
@@ -95,7 +85,7 @@ TEST(Refined, ReplayRunsToTheEndOfItsFileAndRefines) {
       run_process({estimatord_path(), "--config", dir.file("c.yaml"), "--offline", "--replay", csv},
                   Seconds(600));
   ASSERT_EQ(all.exit_code, 0) << all.err;
-  const json s = summary_of(all);
+  const json s = batch_summary(all);
   EXPECT_EQ(s["driver"], "replay");
   EXPECT_GT(s["t"].get<double>(), 229.9) << "the replay stopped before the end of its file";
   ASSERT_TRUE(s.contains("refined")) << s.dump();
@@ -108,7 +98,7 @@ TEST(Refined, ReplayRunsToTheEndOfItsFileAndRefines) {
                                           "--offline", "--replay", csv, "--duration", "50"},
                                          Seconds(600));
   ASSERT_EQ(part.exit_code, 0) << part.err;
-  EXPECT_NEAR(summary_of(part)["t"].get<double>(), 50.0, 0.01);
+  EXPECT_NEAR(batch_summary(part)["t"].get<double>(), 50.0, 0.01);
 }
 
 // In real time the worker thread fits beside the loop and the fit appears over the socket (a short

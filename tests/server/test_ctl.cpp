@@ -112,6 +112,10 @@ TEST(CtlRefined, GetPrintsBothEstimatesAndWhichIsBest) {
   view.samples = 12001;
   view.iterations = 7;
   view.paper_biased = {true, false};
+  // Issue 28: only a validated fit is recommended.
+  view.validated = true;
+  view.validation.mechanical.verdict = scp::refine::Verdict::kAdequate;
+  view.validation.thermal.verdict = scp::refine::Verdict::kAdequate;
   refined.store(view);
   ApiServer server(settings, ServerInfo{"9.9.9-test", "sim", "", ""}, state, ring, &refined);
   server.start();
@@ -123,6 +127,7 @@ TEST(CtlRefined, GetPrintsBothEstimatesAndWhichIsBest) {
   EXPECT_TRUE(contains(r.out, "best: refined; paper law biased: mechanical yes, thermal no"))
       << r.out;
   EXPECT_TRUE(contains(r.out, "refined: window [0.0, 12.0] s (12001 samples)")) << r.out;
+  EXPECT_TRUE(contains(r.out, "refined validation: mechanical adequate")) << r.out;
   std::istringstream lines(r.out);
   std::string line;
   bool found = false;

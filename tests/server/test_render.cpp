@@ -5,6 +5,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 
+#include "daemon/outputs/metrics/exposition.hpp"
 #include "daemon/outputs/server/render.hpp"
 #include "tests/server/server_fixture.hpp"
 
@@ -15,7 +16,7 @@ using nlohmann::json;
 
 TEST(Render, VersionErrorAckWatchAreExactLines) {
   EXPECT_EQ(render_version("1.2.3"),
-            "{\"class\":\"VERSION\",\"proto_major\":1,\"proto_minor\":5,\"release\":\"1.2.3\"}\n");
+            "{\"class\":\"VERSION\",\"proto_major\":1,\"proto_minor\":6,\"release\":\"1.2.3\"}\n");
   EXPECT_EQ(render_error("bad \"x\""), "{\"class\":\"ERROR\",\"message\":\"bad \\\"x\\\"\"}\n");
   EXPECT_EQ(render_ack("reset", true, "done"),
             "{\"class\":\"ACK\",\"message\":\"done\",\"ok\":true,\"request\":\"reset\"}\n");
@@ -174,6 +175,13 @@ refine::RefinedView sample_refined() {
   r.paper_biased = {true, false};
   r.bias_statistic = {400.0, 1.0};
   r.bias_threshold = {18.47, 13.82};
+  // Issue 28: both estimates validated and passed.
+  r.validated = true;
+  r.validation.mechanical.verdict = scp::refine::Verdict::kAdequate;
+  r.validation.thermal.verdict = scp::refine::Verdict::kAdequate;
+  r.paper_validated = true;
+  r.paper_validation.mechanical.verdict = scp::refine::Verdict::kAdequate;
+  r.paper_validation.thermal.verdict = scp::refine::Verdict::kNoiseColored;
   return r;
 }
 
@@ -240,6 +248,76 @@ TEST(Render, BestFallsBackToThePaperLawWhenTheFitIsStaleOrFailed) {
   EXPECT_EQ(j["best"], "paper");
   EXPECT_EQ(j["refined"]["converged"], false);
   EXPECT_EQ(j["paper_biased"]["mechanical"], true) << "held from the last converged fit";
+}
+
+// Issue 28: a refined fit whose validation found structure is never `best`; the paper law is when
+// its own prediction passed, else none, and the reason names the failing test and the remedy. The
+// validation is published per block with its failing tests.
+TEST(Render, BestNamesOnlyAnEstimateWhoseValidationPassed) {
+  const PublishedState s = test::sample_state();
+  refine::RefinedView r = sample_refined();
+  r.validation.thermal.verdict = scp::refine::Verdict::kStructure;
+  r.validation.thermal.decisive = scp::refine::ValidationTest::kResistanceTempco;
+  r.validation.thermal.fit_percent = 97.5;
+  auto& t = r.validation.tests[static_cast<int>(scp::refine::ValidationTest::kResistanceTempco)];
+  t.performed = true;
+  t.failed = true;
+  t.p_value = 1e-9;
+  t.effect = 0.0041;
+  json j = json::parse(render_estimate(s.estimate, &r, 12.5));
+  EXPECT_EQ(j["best"], "paper");
+  const json& thermal = j["refined"]["validation"]["thermal"];
+  EXPECT_EQ(thermal["verdict"], "structure");
+  EXPECT_EQ(thermal["decisive"], "resistance_tempco");
+  EXPECT_DOUBLE_EQ(thermal["fit_percent"].get<double>(), 97.5);
+  ASSERT_EQ(thermal["failed"].size(), 1U);
+  EXPECT_EQ(thermal["failed"][0]["test"], "resistance_tempco");
+  EXPECT_DOUBLE_EQ(thermal["failed"][0]["effect"].get<double>(), 0.0041);
+  EXPECT_EQ(j["refined"]["validation"]["mechanical"]["failed"].size(), 0U);
+  EXPECT_EQ(j["paper_validation"]["thermal"]["verdict"], "noise_colored");
+  const std::string reason = j["best_reason"].get<std::string>();
+  EXPECT_NE(reason.find("resistance_tempco (0.0041)"), std::string::npos) << reason;
+  EXPECT_NE(reason.find("refine.extensions.resistance_tempco"), std::string::npos) << reason;
+
+  r.paper_validation.mechanical.verdict = scp::refine::Verdict::kStructure;
+  r.paper_validation.mechanical.decisive = scp::refine::ValidationTest::kIndependenceX;
+  j = json::parse(render_estimate(s.estimate, &r, 12.5));
+  EXPECT_EQ(j["best"], "none");
+  EXPECT_NE(j["best_reason"].get<std::string>().find("paper law mechanical structure"),
+            std::string::npos)
+      << j["best_reason"];
+
+  r.validated = false;  // a converged fit nobody validated is not recommended either
+  r.paper_validation.mechanical.verdict = scp::refine::Verdict::kAdequate;
+  EXPECT_EQ(json::parse(render_estimate(s.estimate, &r, 12.5))["best"], "paper");
+}
+
+// The metrics carry each estimate's verdict per block as a state set, its fit %, and which
+// estimate is best (none included): what ESTIMATE says, so a dashboard cannot show a failed σ as
+// trustworthy.
+TEST(Render, MetricsCarryTheVerdictPerBlockAndBest) {
+  const PublishedState s = test::sample_state();
+  refine::RefinedView r = sample_refined();
+  r.validation.mechanical.fit_percent = 99.5;
+  r.validation.thermal.verdict = scp::refine::Verdict::kStructure;
+  r.paper_validation.thermal.verdict = scp::refine::Verdict::kUntested;
+  const json estimate = json::parse(render_estimate(s.estimate, &r, 12.5));
+  const std::string text = metrics::exposition(json::object(), estimate, "bench-a");
+  const auto has = [&](const std::string& part) { return text.find(part) != std::string::npos; };
+  EXPECT_TRUE(
+      has("scp_estimator_validation_verdict{actuator=\"bench-a\",estimator=\"refined\","
+          "block=\"thermal\",verdict=\"structure\"} 1"))
+      << text;
+  EXPECT_TRUE(
+      has("scp_estimator_validation_verdict{actuator=\"bench-a\",estimator=\"refined\","
+          "block=\"thermal\",verdict=\"adequate\"} 0"))
+      << text;
+  EXPECT_TRUE(
+      has("scp_estimator_validation_fit_percent{actuator=\"bench-a\",estimator="
+          "\"refined\",block=\"mechanical\"} 99.5"))
+      << text;
+  EXPECT_TRUE(has("scp_estimator_best{actuator=\"bench-a\",estimate=\"none\"} 1")) << text;
+  EXPECT_TRUE(has("scp_estimator_best_refined{actuator=\"bench-a\"} 0")) << text;
 }
 
 TEST(Render, StatusCarriesTheRefinementCounters) {

@@ -7,6 +7,8 @@
 #include <cstdint>
 
 #include "common/names.hpp"
+#include "refine/fit_terms.hpp"
+#include "refine/validation.hpp"
 
 namespace scp::daemon::refine {
 
@@ -64,10 +66,22 @@ struct RefinedView {
   std::array<bool, 2> paper_biased{};
   std::array<double, 2> bias_statistic{};
   std::array<double, 2> bias_threshold{};
+
+  // Issue 28: the voltage interval the fit used, the nuisance terms and extensions as it left
+  // them, and the model validation of the latest fit (refine/validation.hpp): the refined fit's
+  // own, and the paper law's θ̂ simulated through the same window (paper_validation.hpp).
+  scp::refine::VoltageInterval voltage_interval = scp::refine::VoltageInterval::before;
+  scp::refine::Nuisance nuisance;
+  scp::refine::Extensions extensions;
+  bool validated = false;
+  scp::refine::ValidationReport validation;
+  bool paper_validated = false;
+  scp::refine::ValidationReport paper_validation;
 };
 
-// The estimate the daemon recommends at loop time `now_t`: the refined one when its latest fit
-// converged, is at most 3 intervals old and every σ is finite; the paper law's otherwise.
+// Whether the refined fit is current at loop time `now_t`: its latest fit converged, is at most 3
+// intervals old and every σ is finite. Whether it is recommended also takes its validation
+// (best_estimate, best.hpp).
 inline bool refined_is_best(const RefinedView& v, double now_t) noexcept {
   if (!v.valid || !v.converged) return false;
   if (now_t - v.fitted_at_t > 3.0 * v.interval_s) return false;

@@ -5,6 +5,9 @@
 #include <cmath>
 #include <cstring>
 
+#include "daemon/analysis/refine/paper_validation.hpp"
+#include "refine/validate_fit.hpp"
+
 namespace scp::daemon::refine {
 
 namespace {
@@ -60,6 +63,35 @@ bool better(const scp::refine::FitResult& a, const scp::refine::FitResult& b) no
   return std::isfinite(ca) && (!std::isfinite(cb) || ca < cb);
 }
 
+// What the fit found, into the view (plain copies; the counters and the bias test are the
+// caller's).
+void copy_result(const scp::refine::FitResult& r, RefinedView& v) noexcept {
+  v.theta_hat = to_array6(r.theta);
+  v.sigma = to_array6(r.sigma);
+  v.sigma_inflation = to_array6(r.sigma_inflation);
+  v.t_begin = r.t_begin;
+  v.t_end = r.t_end;
+  v.samples = r.samples;
+  v.residual_rms = {r.residual_rms[0], r.residual_rms[1]};
+  v.noise_sigma = {r.noise_sigma[0], r.noise_sigma[1]};
+  v.input_delay_estimated = r.input_delay_estimated;
+  v.input_delay_s = r.input_delay_s;
+  v.input_delay_sigma_s = r.input_delay_sigma_s;
+  v.input_delay_sigma_inflation = r.input_delay_sigma_inflation;
+  v.sample_timing_sigma_s = r.sample_timing_sigma_s;
+  v.outliers = r.outliers;
+  // A result with a non-finite θ̂ is no result, whatever the solver said.
+  v.converged = r.converged && all_finite(v.theta_hat);
+  v.iterations = r.iterations;
+  v.voltage_interval = r.voltage_interval;
+  v.nuisance = r.nuisance;
+  v.extensions = r.extensions;
+  v.validated = r.validated;
+  v.validation = r.validation;
+  v.message.fill('\0');
+  std::strncpy(v.message.data(), r.message != nullptr ? r.message : "", v.message.size() - 1);
+}
+
 }  // namespace
 
 Refiner::Refiner(const config::RefineSettings& settings,
@@ -67,6 +99,7 @@ Refiner::Refiner(const config::RefineSettings& settings,
     : settings_(settings),
       theta0_(estimator.theta0),
       known_(estimator.known),
+      voltage_hold_(estimator.voltage_hold),
       max_gap_s_(settings.max_gap_s),
       tolerance_s_(0.5 * period_s),
       fit_(std::move(fit)),
@@ -145,6 +178,26 @@ Seed Refiner::choose_seed(const PaperEstimate& paper, Vector6& start) const noex
   return seed;
 }
 
+// Issue 28: every fit is validated (the fit's own final pass when it did, one more pass over the
+// window otherwise), and the paper law's θ̂ is tested on the same window, both here on the
+// worker's thread, never the loop's.
+void Refiner::validate(scp::refine::FitResult& r, const PaperEstimate& paper) {
+  const scp::refine::Vector2 noise{settings_.declared_noise[0], settings_.declared_noise[1]};
+  const bool cancelled = cancel_ != nullptr && cancel_->load(std::memory_order_relaxed);
+  if (!r.validated && !cancelled && r.theta.allFinite() && !window_.empty()) {
+    scp::refine::ValidationSettings vs;
+    vs.declared_noise = noise;
+    r.validation = scp::refine::validate_fit(window_.samples(), r, vs, known_);
+    r.validated = true;
+  }
+  view_.paper_validated = false;
+  if (!cancelled && usable(paper) && r.initial_state.allFinite() && !window_.empty()) {
+    view_.paper_validation = validate_paper(window_.samples(), to_vector(paper.theta_hat),
+                                            r.initial_state, r.input_delay_s, noise);
+    view_.paper_validated = true;
+  }
+}
+
 const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::int64_t wall_ns) {
   Vector6 start;
   Seed seed = choose_seed(paper, start);
@@ -160,6 +213,11 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   fit_settings.outlier_threshold =
       settings_.estimate_link_timing ? scp::refine::kOutlierThreshold2d : 0.0;
   fit_settings.landing_timing_jitter = settings_.estimate_link_timing;
+  fit_settings.voltage_hold = voltage_hold_;
+  fit_settings.voltage_interval = settings_.voltage_interval;
+  fit_settings.nuisance = settings_.nuisance;
+  fit_settings.extensions = settings_.extensions;
+  fit_settings.declared_noise = {settings_.declared_noise[0], settings_.declared_noise[1]};
 
   const auto begin = std::chrono::steady_clock::now();
   scp::refine::FitResult r = fit_(window_.samples(), start, fit_settings);
@@ -179,6 +237,7 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
       seed = Seed::paper;
     }
   }
+  validate(r, paper);
   const double duration =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
 
@@ -192,25 +251,7 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   v.fitted_at_unix_ns = wall_ns;
   v.duration_s = duration;
   v.seed = seed;
-  v.theta_hat = to_array6(r.theta);
-  v.sigma = to_array6(r.sigma);
-  v.sigma_inflation = to_array6(r.sigma_inflation);
-  v.t_begin = r.t_begin;
-  v.t_end = r.t_end;
-  v.samples = r.samples;
-  v.residual_rms = {r.residual_rms[0], r.residual_rms[1]};
-  v.noise_sigma = {r.noise_sigma[0], r.noise_sigma[1]};
-  v.input_delay_estimated = r.input_delay_estimated;
-  v.input_delay_s = r.input_delay_s;
-  v.input_delay_sigma_s = r.input_delay_sigma_s;
-  v.input_delay_sigma_inflation = r.input_delay_sigma_inflation;
-  v.sample_timing_sigma_s = r.sample_timing_sigma_s;
-  v.outliers = r.outliers;
-  // A result with a non-finite θ̂ is no result, whatever the solver said.
-  v.converged = r.converged && all_finite(v.theta_hat);
-  v.iterations = r.iterations;
-  v.message.fill('\0');
-  std::strncpy(v.message.data(), r.message != nullptr ? r.message : "", v.message.size() - 1);
+  copy_result(r, v);
 
   if (v.converged) {
     ++v.converged_fits;

@@ -67,10 +67,12 @@ class Refiner {
 
  private:
   bool window_ready() const noexcept;
+  void validate(scp::refine::FitResult& r, const PaperEstimate& paper);
 
   config::RefineSettings settings_;
   Vector6 theta0_;
   std::array<bool, 6> known_;
+  estimator::VoltageHold voltage_hold_;
   double max_gap_s_;
   double tolerance_s_;  // half a period: loop times are sums of periods, never exact
   FitFunction fit_;

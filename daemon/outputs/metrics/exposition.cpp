@@ -203,6 +203,49 @@ void theta_samples(Writer& w, const char* name, const json& values, const char* 
   }
 }
 
+// The model validation of each estimate (ESTIMATE refined.validation, paper_validation; issue 28):
+// the verdict per block as a state set (1 for the current verdict), its fit % and noise ratio.
+void validation_metrics(Writer& w, const json& estimate) {
+  const json none;
+  const std::pair<const char*, const json*> sources[] = {
+      {"paper", estimate.contains("paper_validation") ? &estimate["paper_validation"] : &none},
+      {"refined", estimate.contains("refined") && estimate["refined"].is_object() &&
+                          estimate["refined"].contains("validation")
+                      ? &estimate["refined"]["validation"]
+                      : &none}};
+  if (!sources[0].second->is_object() && !sources[1].second->is_object()) return;
+  constexpr const char* kVerdicts[] = {"adequate", "noise_colored", "structure", "untested"};
+  const auto each_block = [&](auto&& emit) {
+    for (const auto& [who, v] : sources) {
+      if (!v->is_object()) continue;
+      for (const char* block : {"mechanical", "thermal"}) {
+        if (!v->contains(block) || !(*v)[block].is_object()) continue;
+        emit((*v)[block], std::string("estimator=\"") + who + "\",block=\"" + block + "\"");
+      }
+    }
+  };
+  w.family("scp_estimator_validation_verdict", "gauge",
+           "model validation verdict of the block (docs/validation.md): 1 for the current one");
+  each_block([&](const json& b, const std::string& labels) {
+    const std::string verdict = b.value("verdict", std::string());
+    for (const char* name : kVerdicts)
+      w.sample("scp_estimator_validation_verdict", verdict == name ? 1 : 0,
+               labels + ",verdict=\"" + name + "\"");
+  });
+  w.family("scp_estimator_validation_fit_percent", "gauge",
+           "NRMSE fit % of the simulated model per block (MATLAB compare)");
+  each_block([&](const json& b, const std::string& labels) {
+    if (b.contains("fit_percent") && b["fit_percent"].is_number())
+      w.sample("scp_estimator_validation_fit_percent", b["fit_percent"].get<double>(), labels);
+  });
+  w.family("scp_estimator_validation_noise_ratio", "gauge",
+           "residual RMS over the declared sensor noise (sensors.noise), per block");
+  each_block([&](const json& b, const std::string& labels) {
+    if (b.contains("noise_ratio") && b["noise_ratio"].is_number())
+      w.sample("scp_estimator_validation_noise_ratio", b["noise_ratio"].get<double>(), labels);
+  });
+}
+
 void estimate_metrics(Writer& w, const json& estimate) {
   const bool refined = estimate.contains("refined") && estimate["refined"].is_object();
   w.family("scp_estimator_theta", "gauge",
@@ -229,7 +272,14 @@ void estimate_metrics(Writer& w, const json& estimate) {
     w.family("scp_estimator_best_refined", "gauge",
              "1 when the refined estimate is the better one (ESTIMATE best), 0 for the paper's");
     w.sample("scp_estimator_best_refined", estimate["best"] == "refined" ? 1 : 0);
+    w.family("scp_estimator_best", "gauge",
+             "the estimate the daemon recommends (ESTIMATE best): 1 for it; none = neither "
+             "passed its validation");
+    for (const char* name : {"refined", "paper", "none"})
+      w.sample("scp_estimator_best", estimate["best"] == name ? 1 : 0,
+               std::string("estimate=\"") + name + "\"");
   }
+  validation_metrics(w, estimate);
   w.single("scp_estimator_estimate_updates_total", "counter", "estimator updates", estimate,
            "updates");
   w.single("scp_estimator_estimate_skipped_total", "counter",

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "common/clock.hpp"
+#include "daemon/analysis/refine/best.hpp"
 
 namespace scp::daemon {
 
@@ -24,7 +25,8 @@ constexpr const char* kHeader =
     "refined_theta_hat1,refined_theta_hat2,refined_theta_hat3,refined_theta_hat4,"
     "refined_theta_hat5,refined_theta_hat6,refined_sigma1,refined_sigma2,refined_sigma3,"
     "refined_sigma4,refined_sigma5,refined_sigma6,refined_converged,best,"
-    "paper_biased_mechanical,paper_biased_thermal,unix_ns,xdot_source,V_since\n";
+    "paper_biased_mechanical,paper_biased_thermal,unix_ns,xdot_source,V_since,"
+    "refined_verdict_mechanical,refined_verdict_thermal\n";
 
 // <directory>/<actuator>-20261123T083000.123Z.csv: names sort in time order.
 std::string recording_name(const std::string& directory, const std::string& actuator) {
@@ -287,13 +289,18 @@ void Recorder::write_row(const RecordRow& r) {
   for (const double v : refined_.theta_hat) fitted ? put(v) : put_text("");
   for (const double v : refined_.sigma) fitted ? put(v) : put_text("");
   put_text(fitted ? (refined_.converged ? "1" : "0") : "");
-  put_text(refine::refined_is_best(refined_, r.t) ? "refined" : "paper");
+  put_text(refine::best_name(refine::best_of(&refined_, r.t)));
   put_text(refined_.paper_biased[0] ? "1" : "0");
   put_text(refined_.paper_biased[1] ? "1" : "0");
   out = std::to_chars(out, end, r.unix_ns).ptr;
   *out++ = ',';
   put_text(r.xdot_measured ? "measured" : "estimated");
   std::isfinite(r.voltage_since) ? put(r.voltage_since) : put_text("");
+  // The latest fit's validation verdict per block (issue 28): empty before the first.
+  put_text(refined_.validated ? scp::refine::verdict_name(refined_.validation.mechanical.verdict)
+                              : "");
+  put_text(refined_.validated ? scp::refine::verdict_name(refined_.validation.thermal.verdict)
+                              : "");
   out[-1] = '\n';
   const auto size = static_cast<std::size_t>(out - line);
   if (rotating_) {

@@ -7,6 +7,8 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 
+#include "daemon/analysis/refine/best.hpp"
+
 namespace scp::daemon::server {
 namespace {
 
@@ -89,15 +91,86 @@ void put_fault_history(json& out, const FaultHistory& faults) {
   out["last_fault"] = last;
 }
 
-// The members the refinement adds to ESTIMATE: "paper_biased", "best" and, once a fit exists,
-// "refined" (docs/protocol.md). `refined` may be null.
+// One block's verdict (refine/validation.hpp): its decisive test and the failing tests, each with
+// the effect it estimates (the missing term's size, NaN = none: omitted).
+json block_validation(const scp::refine::ValidationReport& report, scp::refine::ValidationBlock b) {
+  const scp::refine::BlockReport& block = report.block(b);
+  json o = json::object();
+  o["verdict"] = scp::refine::verdict_name(block.verdict);
+  o["decisive"] = scp::refine::test_name(block.decisive);
+  put_finite(o, "fit_percent", block.fit_percent);
+  put_finite(o, "residual_rms", block.residual_rms);
+  if (block.noise_ratio > 0.0) put_finite(o, "noise_ratio", block.noise_ratio);
+  put_finite(o, "block_s", block.block_s);
+  o["blocks"] = block.blocks;
+  json failed = json::array();
+  for (int i = 0; i < scp::refine::kValidationTests; ++i) {
+    const auto test = static_cast<scp::refine::ValidationTest>(i);
+    const scp::refine::TestOutcome& t = report.outcome(test);
+    if (scp::refine::block_of(test) != b || !t.performed || !t.failed) continue;
+    json f = {{"test", scp::refine::test_name(test)}};
+    put_finite(f, "p_value", t.p_value);
+    put_finite(f, "effect", t.effect);
+    failed.push_back(f);
+  }
+  o["failed"] = failed;
+  return o;
+}
+
+json validation_json(const scp::refine::ValidationReport& report) {
+  return {{"mechanical", block_validation(report, scp::refine::ValidationBlock::kMechanical)},
+          {"thermal", block_validation(report, scp::refine::ValidationBlock::kThermal)},
+          {"samples", report.samples}};
+}
+
+// refined.nuisance: the terms the fit estimated or held at a value (a term it neither estimated
+// nor was told about is left out); refined.extensions: those not off.
+void put_bench_terms(json& o, const refine::RefinedView& r) {
+  json nuisance = json::object();
+  const std::pair<const char*, const scp::refine::NuisanceEstimate*> terms[] = {
+      {"x_zero", &r.nuisance.x_zero},
+      {"ambient_offset", &r.nuisance.ambient_offset},
+      {"ambient_drift", &r.nuisance.ambient_drift},
+      {"sensor_lag", &r.nuisance.sensor_lag}};
+  for (const auto& [name, n] : terms) {
+    if (!n->estimated && n->value == 0.0) continue;
+    json t = {{"estimated", n->estimated}};
+    put_finite(t, "value", n->value);
+    put_finite(t, "sigma", n->sigma);
+    nuisance[name] = t;
+  }
+  if (!nuisance.empty()) o["nuisance"] = nuisance;
+  json extensions = json::object();
+  const std::pair<const char*, const scp::refine::ExtensionEstimate*> exts[] = {
+      {"resistance_tempco", &r.extensions.resistance_tempco},
+      {"stiffness_softening", &r.extensions.stiffness_softening},
+      {"cooling_tempco", &r.extensions.cooling_tempco}};
+  for (const auto& [name, e] : exts) {
+    if (e->mode == scp::refine::ExtensionMode::off) continue;
+    json t = {{"mode", scp::refine::to_text(e->mode)}, {"kept", e->kept}};
+    put_finite(t, "value", e->value);
+    put_finite(t, "sigma", e->sigma);
+    if (e->criterion != scp::refine::InformationCriterion::none) {
+      t["criterion"] = scp::refine::to_text(e->criterion);
+      put_finite(t, "criterion_difference", e->criterion_difference);
+    }
+    extensions[name] = t;
+  }
+  if (!extensions.empty()) o["extensions"] = extensions;
+}
+
+// The members the refinement adds to ESTIMATE: "paper_biased", "best", "best_reason" and, once a
+// fit exists, "refined" and "paper_validation" (docs/protocol.md). `refined` may be null.
 void put_refinement(json& out, const EstimateView& estimate, const refine::RefinedView* refined,
                     double now_t) {
   const bool fitted = refined != nullptr && refined->valid;
   out["paper_biased"] = per_block(fitted ? refined->paper_biased : std::array<bool, 2>{});
-  out["best"] = fitted && refine::refined_is_best(*refined, now_t) ? "refined" : "paper";
+  const refine::BestChoice best = refine::best_estimate(refined, now_t);
+  out["best"] = refine::best_name(best.best);
+  if (!best.reason.empty()) out["best_reason"] = best.reason;
   if (!fitted) return;
   const refine::RefinedView& r = *refined;
+  if (r.paper_validated) out["paper_validation"] = validation_json(r.paper_validation);
   json o = json::object();
   o["theta_hat"] = number_array(r.theta_hat);
   o["sigma"] = number_array(r.sigma);
@@ -126,6 +199,9 @@ void put_refinement(json& out, const EstimateView& estimate, const refine::Refin
   }
   o["converged"] = r.converged;
   o["iterations"] = r.iterations;
+  o["voltage_interval"] = scp::refine::to_text(r.voltage_interval);
+  if (r.validated) o["validation"] = validation_json(r.validation);
+  put_bench_terms(o, r);
   const std::string_view message{r.message.data(), strnlen(r.message.data(), r.message.size())};
   if (!message.empty()) o["message"] = std::string(message);
   o["seed"] = refine::seed_name(r.seed);

@@ -18,7 +18,9 @@ inline constexpr int kProtoMajor = 1;
 // 1.1: refined, best, paper_biased; STATUS refine. 1.2: STATUS loop.lateness_us.p99_9 and
 // loop.lateness_histogram_ns (1 % resolution); utc/unix_ns in ESTIMATE and STATUS; STATUS
 // actuator, fault_count, recoveries, faults_cleared, last_fault, last_command, recording.
-inline constexpr int kProtoMinor = 5;
+// 1.6: best none and best_reason, paper_validation, refined.validation, voltage_interval,
+// nuisance and extensions (issue 28).
+inline constexpr int kProtoMinor = 6;
 
 std::string render_version(std::string_view release);
 std::string render_error(std::string_view message);

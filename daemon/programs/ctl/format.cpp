@@ -95,6 +95,33 @@ std::string format_status(const json& s) {
   return out;
 }
 
+namespace {
+
+// A block's verdict in words, beside its σ (issue 28): a σ whose block failed its validation is
+// never shown as if it could be trusted. "-" when the block was not validated.
+std::string verdict_words(const json& validation, const char* block) {
+  if (!validation.is_object() || !validation.contains(block)) return "-";
+  const std::string verdict = text(validation[block], "verdict");
+  if (verdict == "adequate") return "adequate";
+  if (verdict == "noise_colored") return "sigma-at-risk";
+  if (verdict == "structure") return "NOT-VALID";
+  return verdict;  // untested
+}
+
+std::string validation_line(const char* who, const json& v) {
+  std::string out = row("%s validation:", who);
+  for (const char* block : {"mechanical", "thermal"}) {
+    const json none;
+    const json& b = v.contains(block) ? v[block] : none;
+    out += row(" %s %s (%s, fit %s %%, noise ratio %s)", block, text(b, "verdict").c_str(),
+               text(b, "decisive").c_str(), member(b, "fit_percent", "%.2f").c_str(),
+               member(b, "noise_ratio", "%.3g").c_str());
+  }
+  return out + "\n";
+}
+
+}  // namespace
+
 std::string format_estimate(const json& e) {
   const bool truth = e.contains("theta_true");
   const json none;
@@ -106,8 +133,10 @@ std::string format_estimate(const json& e) {
   // Both estimates side by side; '*' marks the one the daemon recommends.
   const char* paper_head = best == "paper" ? "paper*" : "paper";
   const char* refined_head = best == "refined" ? "refined*" : "refined";
-  out += row("%-12s %14s %10s", "parameter", paper_head, "sigma");
-  if (refined) out += row(" %14s %10s", refined_head, "sigma");
+  const json& paper_v = e.contains("paper_validation") ? e["paper_validation"] : none;
+  const json& refined_v = refined && r.contains("validation") ? r["validation"] : none;
+  out += row("%-12s %14s %10s %13s", "parameter", paper_head, "sigma", "validation");
+  if (refined) out += row(" %14s %10s %13s", refined_head, "sigma", "validation");
   if (truth) out += row(" %14s %10s", "true", "rel.error");
   if (truth && refined) out += row(" %10s", "refined");
   out += '\n';
@@ -119,11 +148,12 @@ std::string format_estimate(const json& e) {
   const json& r_sigma = refined && r.contains("sigma") ? r["sigma"] : none;
   const json& r_rel = refined && r.contains("rel_error") ? r["rel_error"] : none;
   for (std::size_t i = 0; i < kThetaNames.size(); ++i) {
-    out += row("%-12s %14s %10s", kThetaNames[i], element(theta_hat, i, "%.7g").c_str(),
-               element(sigma, i, "%.3g").c_str());
+    const char* block = i < 4 ? "mechanical" : "thermal";  // θ1..θ4, θ5..θ6
+    out += row("%-12s %14s %10s %13s", kThetaNames[i], element(theta_hat, i, "%.7g").c_str(),
+               element(sigma, i, "%.3g").c_str(), verdict_words(paper_v, block).c_str());
     if (refined)
-      out +=
-          row(" %14s %10s", element(r_hat, i, "%.7g").c_str(), element(r_sigma, i, "%.3g").c_str());
+      out += row(" %14s %10s %13s", element(r_hat, i, "%.7g").c_str(),
+                 element(r_sigma, i, "%.3g").c_str(), verdict_words(refined_v, block).c_str());
     if (truth)
       out += row(" %14s %10s", element(theta_true, i, "%.7g").c_str(),
                  element(rel, i, "%.2e").c_str());
@@ -134,6 +164,9 @@ std::string format_estimate(const json& e) {
   out += row("best: %s; paper law biased: mechanical %s, thermal %s\n", best.c_str(),
              flag(biased, "mechanical", "yes", "no").c_str(),
              flag(biased, "thermal", "yes", "no").c_str());
+  if (e.contains("best_reason")) out += "best_reason: " + text(e, "best_reason") + "\n";
+  if (refined_v.is_object()) out += validation_line("refined", refined_v);
+  if (paper_v.is_object()) out += validation_line("paper", paper_v);
   if (refined) {
     const json& w = r.contains("window") ? r["window"] : none;
     const json& fitted = r.contains("fitted_at") ? r["fitted_at"] : none;
@@ -185,6 +218,10 @@ std::string format_estimate_line(const json& e) {
     out += "]";
   }
   if (e.contains("best")) out += " best=" + text(e, "best");
+  if (e.contains("refined") && e["refined"].contains("validation")) {
+    const json& v = e["refined"]["validation"];
+    out += " validation=" + verdict_words(v, "mechanical") + "/" + verdict_words(v, "thermal");
+  }
   return out + "\n";
 }
 

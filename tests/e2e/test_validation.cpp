@@ -1,0 +1,105 @@
+// Issue 28, the daemon's side: every refined fit is validated and the verdict published, `best`
+// names only an estimate whose validation passed, and the simulated bench can be wrong the ways a
+// real one is (driver.sim.tempco, .ambient, .sensor). Offline batch runs: deterministic.
+
+#include <cstdio>
+
+#include "tests/e2e/e2e_util.hpp"
+
+namespace scp::test {
+namespace {
+
+// The issue's N1 sensors, declared to the validation as they are.
+json noisy_bench(const TempDir& dir, const json& deviations) {
+  return merge_config(
+      base_config(dir.path()),
+      {{"driver",
+        {{"sim", merge_config(
+                     {{"noise", {{"x", 1e-7}, {"xdot", 1e-6}, {"temperature", 1e-3}, {"seed", 7}}}},
+                     deviations)}}},
+       {"sensors", {{"noise", {{"x_m", 1e-7}, {"temperature_c", 1e-3}}}}},
+       {"refine", {{"window_s", 200}, {"interval_s", 100}, {"min_window_s", 30}}}});
+}
+
+ProcessResult batch(const TempDir& dir, const json& cfg, const char* name) {
+  write_config(dir.file(name), cfg);
+  return run_process(
+      {estimatord_path(), "--config", dir.file(name), "--offline", "--duration", "200"},
+      Seconds(900));
+}
+
+// A clean bench the model describes: both blocks pass, the refined estimate is recommended, and
+// the verdict is in the summary's table. If the validation were not run, not published, or its
+// declared noise not passed, `validation` would be missing or the noise ratio absent.
+TEST(Validation, CleanNoisyRunIsAdequateAndRecommendsTheRefinedEstimate) {
+  TempDir dir;
+  const ProcessResult r = batch(dir, noisy_bench(dir, json::object()), "clean.yaml");
+  ASSERT_EQ(r.exit_code, 0) << r.err << r.out;
+  std::printf("%s", r.out.c_str());
+  const json s = batch_summary(r);
+  ASSERT_TRUE(s.contains("refined")) << s.dump();
+  ASSERT_TRUE(s["refined"].contains("validation")) << s["refined"].dump();
+  const json& v = s["refined"]["validation"];
+  for (const char* block : {"mechanical", "thermal"}) {
+    const std::string verdict = v[block]["verdict"].get<std::string>();
+    EXPECT_TRUE(verdict == "adequate" || verdict == "noise_colored") << block << ": " << v.dump();
+    EXPECT_GT(v[block]["fit_percent"].get<double>(), 50.0) << v.dump();
+    EXPECT_TRUE(v[block].contains("noise_ratio")) << "declared noise not passed: " << v.dump();
+  }
+  EXPECT_EQ(s["best"], "refined") << s.value("best_reason", std::string());
+  EXPECT_FALSE(s.contains("best_reason")) << s["best_reason"];
+  EXPECT_TRUE(s.contains("paper_validation")) << "the paper law's verdict";
+  EXPECT_TRUE(contains(r.out, "refined validation mechanical:")) << r.out;
+}
+
+// A heater whose resistance grows 0.4 %/°C, the extension left off: the thermal block's residual
+// carries V²·T̄, the verdict is `structure` naming resistance_tempco, and `best` is not the failed
+// refined estimate; the reason says what to do.
+TEST(Validation, UnmodelledResistanceTempcoIsNamedAndNeverRecommended) {
+  TempDir dir;
+  json cfg = noisy_bench(dir, {{"tempco", {{"R", 0.004}}}});
+  cfg["refine"]["extensions"] = {{"resistance_tempco", "off"}};
+  const ProcessResult r = batch(dir, cfg, "tempco.yaml");
+  ASSERT_EQ(r.exit_code, 0) << r.err << r.out;
+  std::printf("%s", r.out.c_str());
+  const json s = batch_summary(r);
+  ASSERT_TRUE(s.contains("refined")) << s.dump();
+  ASSERT_TRUE(s["refined"].contains("validation")) << s["refined"].dump();
+  const json& thermal = s["refined"]["validation"]["thermal"];
+  EXPECT_EQ(thermal["verdict"], "structure") << thermal.dump();
+  bool named = false;
+  for (const json& f : thermal["failed"]) named = named || f["test"] == "resistance_tempco";
+  EXPECT_TRUE(named) << thermal.dump();
+  EXPECT_NE(s["best"], "refined");
+  ASSERT_TRUE(s.contains("best_reason")) << s.dump();
+  EXPECT_TRUE(contains(s["best_reason"].get<std::string>(), "thermal structure"))
+      << s["best_reason"];
+}
+
+// Every new key is range-checked and a mistake names the key.
+TEST(Validation, ConfigErrorsNameTheKey) {
+  TempDir dir;
+  const std::pair<json, std::string> cases[] = {
+      {{{"driver", {{"sim", {{"tempco", {{"R", 0.5}}}}}}}}, "driver.sim.tempco.R"},
+      {{{"driver", {{"sim", {{"sensor", {{"temperature_lag_s", 0.0001}}}}}}}},
+       "driver.sim.sensor.temperature_lag_s"},
+      {{{"driver", {{"sim", {{"ambient", {{"drift_c_per_h", 1000}}}}}}}},
+       "driver.sim.ambient.drift_c_per_h"},
+      {{{"refine", {{"nuisance", {{"sensor_lag", "soon"}}}}}}, "refine.nuisance.sensor_lag"},
+      {{{"refine", {{"nuisance", {{"x_zero", 2}}}}}}, "refine.nuisance.x_zero"},
+      {{{"refine", {{"extensions", {{"cooling_tempco", "maybe"}}}}}},
+       "refine.extensions.cooling_tempco"},
+      {{{"refine", {{"voltage_interval", "during"}}}}, "refine.voltage_interval"},
+      {{{"sensors", {{"noise", {{"x_m", -1}}}}}}, "sensors.noise.x_m"},
+  };
+  for (const auto& [bad, key] : cases) {
+    write_config(dir.file("bad.yaml"), merge_config(base_config(dir.path()), bad));
+    const ProcessResult r =
+        run_process({estimatord_path(), "--check-config", dir.file("bad.yaml")}, Seconds(30));
+    EXPECT_NE(r.exit_code, 0) << key;
+    EXPECT_TRUE(contains(r.err + r.out, key)) << key << ": " << r.err << r.out;
+  }
+}
+
+}  // namespace
+}  // namespace scp::test
