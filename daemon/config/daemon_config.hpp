@@ -14,6 +14,7 @@
 #include "drivers/sim/sim_settings.hpp"
 #include "estimator/estimator.hpp"
 #include "excitation/excitation_settings.hpp"
+#include "health/settings.hpp"
 
 namespace scp::config {
 
@@ -140,6 +141,14 @@ struct RefineSettings {
   double max_input_delay_s = 0.005;  // the delay is searched within ± this
 };
 
+// Actuator health (docs/health.md): the monitor's settings and where its baseline comes from.
+struct HealthConfig {
+  health::HealthSettings settings;
+  // A baseline made elsewhere; "" = <state.directory>/<actuator.name>.baseline.json, saved with
+  // `scp-estimatorctl baseline save`.
+  std::string baseline_file;
+};
+
 // The Prometheus textfile the daemon writes (docs/metrics: node_exporter's textfile collector).
 struct MetricsSettings {
   std::string textfile_directory;  // "" = no textfile
@@ -166,6 +175,7 @@ struct DaemonConfig {
   daemon::server::ServerSettings socket;  // the server's own settings, filled from `socket`
   StateSettings state;
   RefineSettings refine;
+  HealthConfig health;
   MetricsSettings metrics;
   RecordingSettings recording;
   std::string log_level = "info";
