@@ -12,9 +12,9 @@ namespace {
 using scp::health::EventKind;
 using scp::health::kParameterNames;
 
-std::string percent(double fraction) {
+std::string percent(double fraction, const char* format = "%+.1f %%") {
   char text[32];
-  std::snprintf(text, sizeof(text), "%+.1f %%", 100.0 * fraction);
+  std::snprintf(text, sizeof(text), format, 100.0 * fraction);
   return text;
 }
 
@@ -28,7 +28,7 @@ std::string describe_change(const scp::health::ChangePoint& c) {
   const double reference = p.relative != 0.0 ? p.delta / p.relative : 0.0;
   const double relative_sigma = reference != 0.0 ? p.sigma / std::abs(reference) : 0.0;
   return text + ": " + kParameterNames[static_cast<std::size_t>(c.parameter)] + " " +
-         percent(p.relative) + " (σ " + percent(relative_sigma).substr(1) + ")";
+         percent(p.relative) + " (σ " + percent(relative_sigma, "%.2g %%") + ")";
 }
 
 std::string describe_drift(const std::array<scp::health::ParameterTrend, 6>& trend) {

@@ -110,10 +110,10 @@ void put_full(json& out, const health::HealthView& v) {
   out["dismissed"] = r.dismissed;
   out["acknowledged"] = r.acknowledged;
   out["residual_samples"] = v.residual_samples;
-  out["baseline"] = {{"file", std::string(v.baseline_file.data())},
-                     {"theta", v.baseline_theta},
-                     {"sigma", v.baseline_sigma}};
-  put_wall_clock(out["baseline"], v.baseline_saved_unix_ns);
+  out["baseline_estimate"] = {{"file", std::string(v.baseline_file.data())},
+                              {"theta", v.baseline_theta},
+                              {"sigma", v.baseline_sigma}};
+  put_wall_clock(out["baseline_estimate"], v.baseline_saved_unix_ns);
   if (v.last_window_unix_ns != 0) {
     out["last_window"] = json::object();
     put_wall_clock(out["last_window"], v.last_window_unix_ns);
