@@ -84,9 +84,9 @@ void validate(const SimSettings& s) {
     require(std::isfinite(v), field, "a finite number", v, drift_remedy);
   }
   validate_bench(s);
-  require_non_negative(s.step.at_s, "sim.step.at_s", "seconds after the loop starts");
-  require(std::isfinite(s.step.factor) && s.step.factor > 0.0, "sim.step.factor",
-          "a positive number", s.step.factor, "e.g. 1.1 for +10 %");
+  require_non_negative(s.step_at_s, "sim.step.at_s", "seconds after the loop starts");
+  require(std::isfinite(s.step_factor) && s.step_factor > 0.0, "sim.step.factor",
+          "a positive number", s.step_factor, "e.g. 1.1 for +10 %");
   require_non_negative(s.fault_start_s, "sim.fault.start_s", "seconds after the loop starts");
   require_non_negative(s.fault_duration_s, "sim.fault.duration_s", "use 0 for a fault that lasts");
   require(std::isfinite(s.fault_value_c), "sim.fault.value_c", "a finite temperature",
@@ -128,9 +128,9 @@ bool SimDriver::fault_active(double t) const noexcept {
 }
 
 void SimDriver::advance_plant(double t) noexcept {
-  const SimSettings::Step& step = settings_.step;
-  if (!step_done_ && step.parameter != "none" && t >= step.at_s) {
-    if (step.at_s > plant_.time()) plant_.step(command_, step.at_s - plant_.time());
+  const SimSettings& s = settings_;
+  if (!step_done_ && s.step_parameter != "none" && t >= s.step_at_s) {
+    if (s.step_at_s > plant_.time()) plant_.step(command_, s.step_at_s - plant_.time());
     PlantParams p = plant_.nominal_params();
     constexpr std::array<std::pair<const char*, double PlantParams::*>, 8> kFields{{
         {"m", &PlantParams::m},
@@ -143,7 +143,7 @@ void SimDriver::advance_plant(double t) noexcept {
         {"alpha2", &PlantParams::alpha2},
     }};
     for (const auto& [name, field] : kFields) {
-      if (step.parameter == name) p.*field *= step.factor;
+      if (s.step_parameter == name) p.*field *= s.step_factor;
     }
     plant_.set_params(p);
     step_done_ = true;
