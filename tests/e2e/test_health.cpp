@@ -14,15 +14,6 @@
 namespace scp::test {
 namespace {
 
-json summary_of(const ProcessResult& r) {
-  std::istringstream lines(r.out);
-  std::string line, last;
-  while (std::getline(lines, line)) {
-    if (!line.empty()) last = line;
-  }
-  return json::parse(last);
-}
-
 constexpr double kStepAt = 300.0;
 constexpr const char* kDuration = "420";
 

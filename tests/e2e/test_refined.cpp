@@ -12,16 +12,6 @@
 namespace scp::test {
 namespace {
 
-// The last line a batch run prints is its JSON summary.
-json summary_of(const ProcessResult& r) {
-  std::istringstream lines(r.out);
-  std::string line, last;
-  while (std::getline(lines, line)) {
-    if (!line.empty()) last = line;
-  }
-  return json::parse(last);
-}
-
 // Good lab sensors (the N1): the paper's law is biased toward zero by a common factor on
 // θ1..θ4 while its σ claims otherwise; the refined fit must land within a few of its own σ of the
 // truth, be recommended, and flag the paper law's mechanical block. If the hand-off, the window,
