@@ -9,12 +9,15 @@
 #include <thread>
 
 #include "common/clock.hpp"
+#include "daemon/analysis/health/health_agent.hpp"
 #include "daemon/analysis/refine/refine_worker.hpp"
 #include "daemon/analysis/refine/refiner.hpp"
 #include "daemon/core/loop.hpp"
 #include "daemon/outputs/recording/recorder.hpp"
 #include "daemon/outputs/server/render.hpp"
+#include "daemon/outputs/server/render_health.hpp"
 #include "daemon/service/driver_factory.hpp"
+#include "daemon/service/health_baseline.hpp"
 #include "drivers/replay/replay_driver.hpp"
 
 namespace scp::daemon {
@@ -60,6 +63,7 @@ class BatchRun {
  private:
   void run_cycles();
   void refine_now(double t);
+  void start_health();
   nlohmann::json summary(double wall_s) const;
 
   config::DaemonConfig cfg_;
@@ -75,6 +79,9 @@ class BatchRun {
   std::optional<Recorder> recorder_;
   std::unique_ptr<HandOffRing> handoff_;
   std::optional<refine::Refiner> refiner_;
+  // The health monitor, inline with the refinement; every event kept for the summary.
+  std::unique_ptr<health::HealthLink> health_link_;
+  std::unique_ptr<health::HealthAgent> health_;
   std::optional<Loop> loop_;
   double replay_start_ = 0.0;
   std::uint64_t cycles_ = 0;
@@ -92,9 +99,24 @@ BatchRun::BatchRun(config::DaemonConfig cfg, const BatchOptions& options)
   if (cfg_.refine.enabled) {
     handoff_ = std::make_unique<HandOffRing>();
     refiner_.emplace(cfg_.refine, cfg_.estimator, cfg_.loop.period_s);
+    start_health();
   }
   loop_.emplace(cfg_, *driver_, *published_, *commands_, record_ring_.get(),
                 /*block_when_record_full=*/true, handoff_.get());
+}
+
+// The baseline file if there is one, else the run's first converged window.
+void BatchRun::start_health() {
+  health_link_ = std::make_unique<health::HealthLink>();
+  health_ = std::make_unique<health::HealthAgent>(cfg_.health.settings, *health_link_,
+                                                  /*keep_events=*/true);
+  std::string warning;
+  if (std::optional<health::Baseline> b = load_baseline(cfg_, warning)) {
+    health_->runner().set_baseline(b, baseline_path(cfg_));
+  } else {
+    health_->runner().adopt_first_fit();
+  }
+  refiner_->set_observer(health_.get());
 }
 
 nlohmann::json BatchRun::run() {
@@ -147,6 +169,30 @@ void BatchRun::refine_now(double t) {
   }
 }
 
+// The monitor's state at the end, and every change point and drift it raised.
+void put_health(nlohmann::json& out, const health::HealthAgent& agent) {
+  out["health"] = server::health_json(agent.runner().view(), /*full=*/false);
+  nlohmann::json events = nlohmann::json::array();
+  for (const scp::health::HealthEvent& e : agent.events()) {
+    nlohmann::json item = {
+        {"event", scp::health::event_name(e.kind)}, {"t", e.t}, {"text", health::describe(e)}};
+    if (e.kind == scp::health::EventKind::changed) {
+      item["onset"] = e.change.onset;
+      item["detector"] = scp::health::detector_name(e.change.detector);
+      const int p = e.change.parameter;
+      if (p >= 0) {
+        const auto& shift = e.change.parameters[static_cast<std::size_t>(p)];
+        item["parameter"] = scp::health::kParameterNames[static_cast<std::size_t>(p)];
+        item["relative"] = shift.relative;
+        item["delta"] = shift.delta;
+        item["sigma"] = shift.sigma;
+      }
+    }
+    events.push_back(std::move(item));
+  }
+  out["health_events"] = std::move(events);
+}
+
 // ESTIMATE as a client would read it at the end (docs/protocol.md), and the run's own members.
 nlohmann::json BatchRun::summary(double wall_s) const {
   const PublishedState last = published_->load();
@@ -174,6 +220,7 @@ nlohmann::json BatchRun::summary(double wall_s) const {
                      {"max_step_s", trace.max_step}};
   }
   if (recorder_) out["recorded_rows"] = recorder_->rows_written();
+  if (health_) put_health(out, *health_);
   return out;
 }
 
@@ -259,6 +306,14 @@ std::string refined_table(const nlohmann::json& s) {
   return out;
 }
 
+// The monitor's final state and every event, one line each.
+std::string health_lines(const nlohmann::json& s) {
+  std::string out = "health: " + s["health"].value("state", std::string("-")) + "\n";
+  for (const nlohmann::json& e : s.value("health_events", nlohmann::json::array()))
+    out += "  " + e.value("text", std::string()) + "\n";
+  return out;
+}
+
 }  // namespace
 
 nlohmann::json run_batch(config::DaemonConfig cfg, const BatchOptions& options) {
@@ -294,6 +349,7 @@ std::string summary_table(const nlohmann::json& s) {
     out += line;
   }
   if (s.contains("refined")) out += refined_table(s);
+  if (s.contains("health")) out += health_lines(s);
   return out;
 }
 

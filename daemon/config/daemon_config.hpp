@@ -16,6 +16,7 @@
 #include "estimator/estimator.hpp"
 #include "excitation/excitation_settings.hpp"
 #include "refine/fit_terms.hpp"
+#include "health/settings.hpp"
 
 namespace scp::config {
 
@@ -166,6 +167,14 @@ struct RefineSettings {
   std::array<double, 2> declared_noise{};
 };
 
+// Actuator health (docs/health.md): the monitor's settings and where its baseline comes from.
+struct HealthConfig {
+  health::HealthSettings settings;
+  // A baseline made elsewhere; "" = <state.directory>/<actuator.name>.baseline.json, saved with
+  // `scp-estimatorctl baseline save`.
+  std::string baseline_file;
+};
+
 // The Prometheus textfile the daemon writes (docs/metrics: node_exporter's textfile collector).
 struct MetricsSettings {
   std::string textfile_directory;  // "" = no textfile
@@ -192,6 +201,7 @@ struct DaemonConfig {
   daemon::server::ServerSettings socket;  // the server's own settings, filled from `socket`
   StateSettings state;
   RefineSettings refine;
+  HealthConfig health;
   MetricsSettings metrics;
   RecordingSettings recording;
   std::string log_level = "info";

@@ -98,6 +98,12 @@ void declare_sim(Binder& sim, drivers::sim::SimSettings& out) {
   drift.number("k", d.k, 0.0, -10.0, 10.0, "of k, per hour");
   drift.number("alpha1", d.alpha1, 0.0, -10.0, 10.0, "of α1, per hour");
   drift.number("alpha2", d.alpha2, 0.0, -10.0, 10.0, "of α2, per hour");
+  Binder step = sim.section("step", "a step of one physical parameter, for tests of health");
+  step.choice("parameter", out.step_parameter, "none",
+              {"none", "m", "R", "Cth", "lambda", "b", "k", "alpha1", "alpha2"},
+              "the physical parameter that steps (none = no step)");
+  step.number("at_s", out.step_at_s, 0.0, 0.0, kHuge, "loop time of the step");
+  step.number("factor", out.step_factor, 1.0, 1e-3, 1e3, "the parameter is multiplied by this");
   Binder fault = sim.section("fault", "fault injection, for tests of the safety layer");
   fault.choice("kind", out.fault, "none",
                {"none", "nan_temperature", "inf_position", "stuck_position", "stuck_sensor",
@@ -418,6 +424,43 @@ void declare_sensors(Binder sensors, RefineSettings& out) {
                "of the temperature sensor, °C");
 }
 
+void declare_health(Binder health, HealthConfig& out) {
+  health::HealthSettings& h = out.settings;
+  health.number("false_alarm_days", h.false_alarm_days, 30.0, 0.01, 1e5,
+                "designed mean running time between false alarms of all detectors together "
+                "(days); the thresholds follow from it (docs/health.md)");
+  health.number("drift_per_hour", h.drift_per_hour, 0.05, 1e-6, 10.0,
+                "a parameter whose slope exceeds this fraction of |θ_i| per hour "
+                "(significantly) raises `drift`");
+  health.number("min_relative_change", h.min_relative_change, 0.02, 0.0, 1.0,
+                "no parameter is named as changed by less than this fraction of |θ_i|, however "
+                "significant (a real bench's model misfit moves θ̂ by more than its σ)");
+  health.number("design_change", h.design_change, 0.10, 1e-6, 10.0,
+                "the step, as a fraction of |θ_i|, the fast detector's CUSUMs are tuned for");
+  health.number("block_s", h.block_s, 1.0, 1e-3, 600.0,
+                "the fast detector sums the residuals' scores over blocks this long");
+  health.number("trend_span_s", h.trend_span_s, 3600.0, 60.0, 1e6,
+                "the drift test's trends use the refined windows of this much loop time");
+  health.number("reference_span_s", h.reference_span_s, 1200.0, 60.0, 1e6,
+                "the reference the detectors test against extrapolates the trend of this much "
+                "loop time of refined windows (at least three refine.window_s)");
+  health.number("trend_min_span_s", h.trend_min_span_s, 0.0, 0.0, 1e6,
+                "the reference takes a slope once its windows' midpoints span this long (0: "
+                "from two windows)");
+  health.number("heat_capacity_j_per_c", h.heat_capacity_j_per_c, 0.0, 0.0, 1e9,
+                "the actuator's heat capacity Cth in J/°C when known (R and λ are then "
+                "published); 0 = unknown");
+  Binder baseline = health.section("baseline", "the healthy actuator the monitor compares with");
+  baseline.text("file", out.baseline_file, "",
+                "a baseline made elsewhere (scp-estimatorctl baseline show prints the format); "
+                "\"\" = <state.directory>/<actuator.name>.baseline.json, written by "
+                "`scp-estimatorctl baseline save`");
+  if (const std::string error = health::validate(h); !error.empty()) {
+    const std::string key = error.substr(std::string("health.").size(), error.find(':') - 7);
+    health.fail(key, error);
+  }
+}
+
 void declare_metrics(Binder metrics, MetricsSettings& out) {
   metrics.text("textfile_directory", out.textfile_directory, "",
                "directory of node_exporter's textfile collector; the daemon writes "
@@ -524,6 +567,10 @@ void declare_daemon_keys(Binder& root, DaemonConfig& out) {
   declare_refine(refine, out.refine);
   declare_refine_bench(refine, out.refine);
   declare_sensors(root.section("sensors", "what is known of the sensors"), out.refine);
+  declare_health(root.section("health",
+                              "actuator health: change and drift detection against a baseline "
+                              "(docs/health.md)"),
+                 out.health);
   declare_metrics(root.section("metrics",
                                "Prometheus metrics for node_exporter's textfile "
                                "collector (scp-estimatorctl metrics prints the same)"),

@@ -26,6 +26,7 @@
 #include "daemon/service/checkpoints.hpp"
 #include "daemon/service/driver_factory.hpp"
 #include "daemon/service/event_log.hpp"
+#include "daemon/service/health_service.hpp"
 #include "daemon/service/recording_control.hpp"
 #include "daemon/service/reloader.hpp"
 #include "daemon/service/start_wait.hpp"
@@ -66,13 +67,17 @@ sigset_t take_signals() {
 }
 
 // The refinement: the loop hands its samples over a ring to a worker thread below it.
+// The actuator's health monitor runs on the same worker, fed by the refinement.
 struct Refinement {
-  Refinement(const config::DaemonConfig& cfg, const rt::Seqlock<PublishedState>& published)
+  Refinement(const config::DaemonConfig& cfg, const rt::Seqlock<PublishedState>& published,
+             const std::string& driver_name)
       : handoff(std::make_unique<HandOffRing>()),
         refined(std::make_unique<rt::Seqlock<refine::RefinedView>>()),
-        worker(cfg, *handoff, published, *refined) {}
+        health(std::make_unique<HealthService>(cfg, driver_name)),
+        worker(cfg, *handoff, published, *refined, &health->agent()) {}
   std::unique_ptr<HandOffRing> handoff;
   std::unique_ptr<rt::Seqlock<refine::RefinedView>> refined;
+  std::unique_ptr<HealthService> health;
   refine::RefineWorker worker;
 };
 
@@ -161,7 +166,8 @@ void Service::build_loop() {
   safety_ = std::make_unique<SafetyCell>();
   safety_->store(cfg_.safety);
   excitation_ = std::make_unique<ExcitationExchange>();
-  if (cfg_.refine.enabled) refinement_ = std::make_unique<Refinement>(cfg_, *published_);
+  if (cfg_.refine.enabled)
+    refinement_ = std::make_unique<Refinement>(cfg_, *published_, driver_name_);
   // The loop pushes rows into a ring (dropping and counting them when it is full), a thread writes
   // them to rotating files; the loop reads which ring each cycle, so a reload can switch it.
   recording_ = std::make_unique<RecordingControl>(cfg_.recording, cfg_.actuator.name);
@@ -179,6 +185,7 @@ void Service::start_server() {
       refinement_ ? refinement_->refined.get() : nullptr;
   server_ = std::make_unique<server::ApiServer>(cfg_.socket, info, *published_, *commands_, refined,
                                                 lateness_.get());
+  if (refinement_) server_->set_health(refinement_->health.get());
   metrics_ = std::make_unique<MetricsPublisher>(cfg_, info, *published_, refined);
   reloader_ =
       std::make_unique<Reloader>(cfg_, *safety_, *excitation_, *published_, *recording_, *metrics_);

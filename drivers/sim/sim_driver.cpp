@@ -1,10 +1,12 @@
 #include "drivers/sim/sim_driver.hpp"
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include "common/checks.hpp"
 
@@ -82,6 +84,9 @@ void validate(const SimSettings& s) {
     require(std::isfinite(v), field, "a finite number", v, drift_remedy);
   }
   validate_bench(s);
+  require_non_negative(s.step_at_s, "sim.step.at_s", "seconds after the loop starts");
+  require(std::isfinite(s.step_factor) && s.step_factor > 0.0, "sim.step.factor",
+          "a positive number", s.step_factor, "e.g. 1.1 for +10 %");
   require_non_negative(s.fault_start_s, "sim.fault.start_s", "seconds after the loop starts");
   require_non_negative(s.fault_duration_s, "sim.fault.duration_s", "use 0 for a fault that lasts");
   require(std::isfinite(s.fault_value_c), "sim.fault.value_c", "a finite temperature",
@@ -122,6 +127,30 @@ bool SimDriver::fault_active(double t) const noexcept {
          t < settings_.fault_start_s + settings_.fault_duration_s;
 }
 
+void SimDriver::advance_plant(double t) noexcept {
+  const SimSettings& s = settings_;
+  if (!step_done_ && s.step_parameter != "none" && t >= s.step_at_s) {
+    if (s.step_at_s > plant_.time()) plant_.step(command_, s.step_at_s - plant_.time());
+    PlantParams p = plant_.nominal_params();
+    constexpr std::array<std::pair<const char*, double PlantParams::*>, 8> kFields{{
+        {"m", &PlantParams::m},
+        {"R", &PlantParams::R},
+        {"Cth", &PlantParams::Cth},
+        {"lambda", &PlantParams::lambda},
+        {"b", &PlantParams::b},
+        {"k", &PlantParams::k},
+        {"alpha1", &PlantParams::alpha1},
+        {"alpha2", &PlantParams::alpha2},
+    }};
+    for (const auto& [name, field] : kFields) {
+      if (s.step_parameter == name) p.*field *= s.step_factor;
+    }
+    plant_.set_params(p);
+    step_done_ = true;
+  }
+  if (t > plant_.time()) plant_.step(command_, t - plant_.time());
+}
+
 IoResult SimDriver::read(const CycleTime& now, Sample& out) noexcept {
   ++stats_.reads;
   if (!std::isfinite(now.t)) {
@@ -129,7 +158,7 @@ IoResult SimDriver::read(const CycleTime& now, Sample& out) noexcept {
     return IoResult::fail("sim: non-finite cycle time");
   }
   // The physics moves on whatever the sensor does: a faulty sensor does not stop time.
-  if (now.t > plant_.time()) plant_.step(command_, now.t - plant_.time());
+  advance_plant(now.t);
 
   const bool faulty = fault_active(now.t);
   if (faulty && fault_ == Fault::stall && !stalled_) {

@@ -62,6 +62,8 @@ class SimDriver final : public Driver {
 
  private:
   bool fault_active(double t) const noexcept;
+  // Advances the plant to t, applying SimSettings::step on the way.
+  void advance_plant(double t) noexcept;
   void stall() noexcept;
 
   SimSettings settings_;
@@ -71,6 +73,7 @@ class SimDriver final : public Driver {
   double command_ = 0.0;  // V held from the last read onward
   double current_ = kNotMeasured;
   bool stalled_ = false;       // stall happens once per window
+  bool step_done_ = false;     // SimSettings::step applied
   bool have_stuck_x_ = false;  // stuck_position: x reported before the fault began
   double stuck_x_ = 0.0;
   double last_x_ = 0.0;

@@ -30,6 +30,12 @@ struct SimSettings {
   // A heater-current channel, I = V/R(T̄) (SimDriver::current()), with Gaussian noise in A.
   bool measure_current = false;
   double noise_current = 0;
+  // A step of one physical parameter (for tests of the health monitor): at loop time at_s the
+  // nominal `parameter` (m, R, Cth, lambda, b, k, alpha1, alpha2; "none" = no step) is
+  // multiplied by `factor`.
+  std::string step_parameter = "none";
+  double step_at_s = 0.0;
+  double step_factor = 1.0;
   // Fault injection (for end-to-end tests of the daemon's safety): from fault_start_s for
   // fault_duration_s (0 = forever) the sensor reports this fault.
   // none | nan_temperature | inf_position | stuck_position | stuck_sensor |

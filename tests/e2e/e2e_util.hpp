@@ -37,6 +37,16 @@ inline std::uint64_t loop_count(const json& status, const char* key) {
   return status.at("loop").at(key).get<std::uint64_t>();
 }
 
+// The last line a batch run prints is its JSON summary.
+inline json summary_of(const ProcessResult& r) {
+  std::istringstream lines(r.out);
+  std::string line, last;
+  while (std::getline(lines, line)) {
+    if (!line.empty()) last = line;
+  }
+  return json::parse(last);
+}
+
 inline bool contains(const std::string& text, const std::string& part) {
   return text.find(part) != std::string::npos;
 }

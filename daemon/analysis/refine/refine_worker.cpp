@@ -41,11 +41,13 @@ PaperEstimate paper_estimate(const PublishedState& state) noexcept {
 
 RefineWorker::RefineWorker(const config::DaemonConfig& config, HandOffRing& ring,
                            const rt::Seqlock<PublishedState>& published,
-                           rt::Seqlock<RefinedView>& out)
+                           rt::Seqlock<RefinedView>& out, FitObserver* observer)
     : ring_(ring),
       published_(published),
       out_(out),
-      refiner_(config.refine, config.estimator, config.loop.period_s) {
+      refiner_(config.refine, config.estimator, config.loop.period_s),
+      observer_(observer) {
+  refiner_.set_observer(observer);
   // stop() must not wait for a fit of a long window (or one on a hard window) to finish.
   refiner_.set_cancel(&stop_);
   out_.store(refiner_.view());
@@ -69,6 +71,7 @@ void RefineWorker::run() noexcept {
     lower_priority();
     while (!stop_.load(std::memory_order_acquire)) {
       refiner_.drain(ring_);
+      if (observer_ != nullptr) observer_->poll();
       if (!refiner_.due()) {
         std::this_thread::sleep_for(kPollPeriod);
         continue;

@@ -24,8 +24,10 @@ class RefineWorker {
  public:
   // Everything referenced must outlive the worker. Allocates the window here, before the loop
   // starts.
+  // `observer` (may be null) sees every sample and fit, and is polled after every drain.
   RefineWorker(const config::DaemonConfig& config, HandOffRing& ring,
-               const rt::Seqlock<PublishedState>& published, rt::Seqlock<RefinedView>& out);
+               const rt::Seqlock<PublishedState>& published, rt::Seqlock<RefinedView>& out,
+               FitObserver* observer = nullptr);
   ~RefineWorker();  // stop()s
   RefineWorker(const RefineWorker&) = delete;
   RefineWorker& operator=(const RefineWorker&) = delete;
@@ -42,6 +44,7 @@ class RefineWorker {
   const rt::Seqlock<PublishedState>& published_;
   rt::Seqlock<RefinedView>& out_;
   Refiner refiner_;
+  FitObserver* observer_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };

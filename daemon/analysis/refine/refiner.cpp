@@ -131,6 +131,7 @@ void Refiner::accept(const HandOff& handoff) noexcept {
   started_ = true;
   segment_ = handoff.segment;
   window_.push(s);
+  if (observer_ != nullptr) observer_->on_sample(s);
   // The window is window_s of loop time: with samples missing (overruns) fewer than its capacity.
   while (window_.size() > 1 && s.t - window_.front().t > settings_.window_s + tolerance_s_) {
     window_.drop_oldest();
@@ -275,6 +276,7 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
       }
     }
   }
+  if (observer_ != nullptr) observer_->on_fit(r, window_.samples(), wall_ns);
   return view_;
 }
 

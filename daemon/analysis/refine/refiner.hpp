@@ -33,6 +33,19 @@ struct PaperEstimate {
 using FitFunction = std::function<scp::refine::FitResult(
     std::span<const scp::refine::WindowSample>, const Vector6&, const scp::refine::FitSettings&)>;
 
+// Who else reads the refinement's data (the health monitor, daemon/analysis/health/): every
+// valid sample in time order, and every fit with the window it was made on. Called on the
+// refinement's own thread, which also calls poll() between fits (the worker after every drain
+// of the ring; a batch run every cycle) for work of its own.
+class FitObserver {
+ public:
+  virtual ~FitObserver() = default;
+  virtual void poll() {}
+  virtual void on_sample(const scp::refine::WindowSample& sample) noexcept = 0;
+  virtual void on_fit(const scp::refine::FitResult& fit,
+                      std::span<const scp::refine::WindowSample> window, std::int64_t wall_ns) = 0;
+};
+
 class Refiner {
  public:
   // `fit` is refine::fit except in tests. Allocates the window: window_s / period_s samples.
@@ -59,6 +72,10 @@ class Refiner {
   // flag so that shutdown never waits on a fit; nullptr (the default) never cancels.
   void set_cancel(const std::atomic<bool>* cancel) noexcept { cancel_ = cancel; }
 
+  // Sees every sample and fit from now on; nullptr (the default) for none. Must outlive the
+  // refiner's use.
+  void set_observer(FitObserver* observer) noexcept { observer_ = observer; }
+
   const RefinedView& view() const noexcept { return view_; }
   const SampleWindow& window() const noexcept { return window_; }
   // Where the next fit would start, and from which source: the last converged fit whose σ is
@@ -77,6 +94,7 @@ class Refiner {
   double tolerance_s_;  // half a period: loop times are sums of periods, never exact
   FitFunction fit_;
   const std::atomic<bool>* cancel_ = nullptr;
+  FitObserver* observer_ = nullptr;
   SampleWindow window_;
   bool started_ = false;
   std::uint64_t segment_ = 0;

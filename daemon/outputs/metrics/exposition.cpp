@@ -288,6 +288,100 @@ void estimate_metrics(Writer& w, const json& estimate) {
            "loop time of the latest estimator update", estimate, "t");
 }
 
+// The protocol's parameter names (health/types.hpp) to this exposition's label values.
+std::string parameter_label(const std::string& protocol_name) {
+  constexpr std::array<const char*, 6> kProtocol{"b/m",  "a1/m",  "k/m",
+                                                 "a2/m", "l/Cth", "1/(R Cth)"};
+  for (std::size_t i = 0; i < kProtocol.size(); ++i)
+    if (protocol_name == kProtocol[i]) return std::string("parameter=\"") + kParameters[i] + "\"";
+  return "parameter=\"" + label_value(protocol_name) + "\"";
+}
+
+void health_state_metrics(Writer& w, const json& h) {
+  w.family("scp_estimator_health_state", "gauge",
+           "1 for the actuator's health state (ok, drift, changed; blind without a baseline)");
+  const std::string state = h.value("state", "blind");
+  for (const char* name : {"blind", "ok", "drift", "changed"}) {
+    w.sample("scp_estimator_health_state", state == name ? 1.0 : 0.0,
+             std::string("state=\"") + name + "\"");
+  }
+  w.family("scp_estimator_health_baseline_present", "gauge", "1 when a baseline is loaded");
+  w.sample("scp_estimator_health_baseline_present", h.value("baseline", false) ? 1.0 : 0.0);
+  w.single("scp_estimator_health_changes_total", "counter", "change points found", h, "changes");
+  w.single("scp_estimator_health_drifts_total", "counter", "drifts raised", h, "drifts");
+  w.single("scp_estimator_health_dismissed_total", "counter",
+           "fast alarms whose change was below health.min_relative_change", h, "dismissed");
+  if (h.contains("last_window"))
+    w.single("scp_estimator_health_last_window_timestamp_seconds", "gauge",
+             "wall-clock time (Unix epoch) of the last refined window the monitor was given",
+             h["last_window"], "unix_ns", 1e-9);
+}
+
+void health_deviation_metrics(Writer& w, const json& deviation) {
+  const auto found = deviation.find("blocks");
+  if (found == deviation.end() || !found->is_object()) return;
+  const json& blocks = *found;
+  w.family("scp_estimator_health_baseline_chi2", "gauge",
+           "the latest refined window's Wald statistic against the baseline, per block");
+  for (const auto& [block, b] : blocks.items())
+    w.sample("scp_estimator_health_baseline_chi2", get(b, "chi2"), "block=\"" + block + "\"");
+  w.family("scp_estimator_health_baseline_chi2_threshold", "gauge",
+           "its threshold at the designed false-alarm rate");
+  for (const auto& [block, b] : blocks.items())
+    w.sample("scp_estimator_health_baseline_chi2_threshold", get(b, "threshold"),
+             "block=\"" + block + "\"");
+  w.family("scp_estimator_health_baseline_relative", "gauge",
+           "(θ̂ − θ_baseline)/|θ_baseline| of the latest refined window");
+  for (const json& p : deviation.value("parameters", json::array()))
+    w.sample("scp_estimator_health_baseline_relative", get(p, "relative"),
+             parameter_label(p.value("parameter", "")));
+  w.family("scp_estimator_health_baseline_z", "gauge",
+           "(θ̂ − θ_baseline)/σ of the latest refined window, σ from both covariances");
+  for (const json& p : deviation.value("parameters", json::array()))
+    w.sample("scp_estimator_health_baseline_z", get(p, "z"),
+             parameter_label(p.value("parameter", "")));
+}
+
+void health_detector_metrics(Writer& w, const json& h) {
+  if (h.contains("drift")) {
+    w.family("scp_estimator_health_slope_relative_per_hour", "gauge",
+             "the drift test's slope, as a fraction of |θ| per hour");
+    for (const json& p : h["drift"].value("parameters", json::array()))
+      w.sample("scp_estimator_health_slope_relative_per_hour", get(p, "relative_per_hour"),
+               parameter_label(p.value("parameter", "")));
+  }
+  if (h.contains("indicators")) {
+    const json& indicators = h["indicators"];
+    w.family("scp_estimator_health_indicator", "gauge",
+             "condition indicators of the latest refined window (docs/health.md)");
+    for (const auto& [name, v] : indicators.items())
+      w.sample("scp_estimator_health_indicator", get(v, "value"), "indicator=\"" + name + "\"");
+    w.family("scp_estimator_health_indicator_sigma", "gauge", "their standard deviations");
+    for (const auto& [name, v] : indicators.items())
+      w.sample("scp_estimator_health_indicator_sigma", get(v, "sigma"),
+               "indicator=\"" + name + "\"");
+  }
+  if (h.contains("fast")) {
+    w.family("scp_estimator_health_cusum_ratio", "gauge",
+             "the fast detector's max(g+, g-)/h per parameter (1 alarms)");
+    const json& fast = h["fast"];
+    const auto ratios = fast.find("cusum_ratio");
+    if (ratios == fast.end() || !ratios->is_object()) return;
+    for (const auto& [name, value] : ratios->items())
+      w.sample("scp_estimator_health_cusum_ratio", value.is_number() ? value.get<double>() : NAN,
+               parameter_label(name));
+  }
+}
+
+// STATUS `health` (full): absent when the refinement is off.
+void health_metrics(Writer& w, const json& status) {
+  const auto it = status.find("health");
+  if (it == status.end() || !it->is_object()) return;
+  health_state_metrics(w, *it);
+  if (it->contains("baseline_deviation")) health_deviation_metrics(w, (*it)["baseline_deviation"]);
+  health_detector_metrics(w, *it);
+}
+
 }  // namespace
 
 std::string label_value(const std::string& text) {
@@ -314,6 +408,7 @@ std::string exposition(const json& status, const json& estimate, const std::stri
   driver_metrics(w, status);
   service_metrics(w, status);
   estimate_metrics(w, estimate);
+  health_metrics(w, status);
   return w.take();
 }
 

@@ -28,6 +28,7 @@
 
 #include "common/clock.hpp"
 #include "daemon/outputs/server/render.hpp"
+#include "daemon/outputs/server/render_health.hpp"
 #include "daemon/outputs/server/request.hpp"
 
 namespace scp::daemon::server {
@@ -107,6 +108,23 @@ sockaddr_un socket_address(const std::string& path) {
   return addr;
 }
 
+constexpr const char* kNoHealth =
+    "health monitoring needs the refinement: set refine.enabled: true (docs/health.md)";
+
+// HEALTH (the monitor's view in full) or BASELINE (the baseline file's contents).
+std::string health_reply(RequestKind kind, const HealthControl* health) {
+  if (health == nullptr) return render_error(kNoHealth);
+  nlohmann::json out;
+  if (kind == RequestKind::health) {
+    out = health_json(health->view(), /*full=*/true);
+    out["class"] = "HEALTH";
+  } else {
+    out = health->baseline();
+    out["class"] = "BASELINE";
+  }
+  return out.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) + '\n';
+}
+
 }  // namespace
 
 struct ApiServer::Impl {
@@ -122,6 +140,7 @@ struct ApiServer::Impl {
   CommandRing& ring;
   const rt::Seqlock<refine::RefinedView>* refined;
   const rt::LatencyHistogram* lateness;
+  HealthControl* health = nullptr;
   std::unique_ptr<rt::LatencyHistogram::Snapshot> lateness_copy;  // 30 KiB, reused
 
   // The ESTIMATE line changes only when the loop publishes (once a cycle), while clients may ask
@@ -130,25 +149,30 @@ struct ApiServer::Impl {
   std::string estimate_cache;
   std::uint64_t estimate_cache_state = 0;
   std::uint64_t estimate_cache_refined = 0;
+  std::uint64_t estimate_cache_health = 0;
   bool estimate_cache_valid = false;
 
   // Both published snapshots, read together.
   const std::string& estimate_reply() {
     const std::uint64_t state_version = state.version();
     const std::uint64_t refined_version = refined != nullptr ? refined->version() : 0;
+    const std::uint64_t health_version = health != nullptr ? health->version() : 0;
     if (estimate_cache_valid && state_version == estimate_cache_state &&
-        refined_version == estimate_cache_refined) {
+        refined_version == estimate_cache_refined && health_version == estimate_cache_health) {
       return estimate_cache;
     }
     const PublishedState now = state.load();
+    const std::optional<health::HealthView> health_view = health_snapshot();
+    const health::HealthView* h = health_view ? &*health_view : nullptr;
     if (refined == nullptr) {
-      estimate_cache = render_estimate(now.estimate, nullptr, now.uptime_s);
+      estimate_cache = render_estimate(now.estimate, nullptr, now.uptime_s, h);
     } else {
       const refine::RefinedView view = refined->load();
-      estimate_cache = render_estimate(now.estimate, &view, now.uptime_s);
+      estimate_cache = render_estimate(now.estimate, &view, now.uptime_s, h);
     }
     estimate_cache_state = state_version;
     estimate_cache_refined = refined_version;
+    estimate_cache_health = health_version;
     estimate_cache_valid = true;
     return estimate_cache;
   }
@@ -160,10 +184,17 @@ struct ApiServer::Impl {
       fine = lateness_copy.get();
     }
     const CommandRecord* command = last_command ? &*last_command : nullptr;
-    if (refined == nullptr) return render_status(now, info, nullptr, fine, command);
+    const std::optional<health::HealthView> health_view = health_snapshot();
+    const health::HealthView* h = health_view ? &*health_view : nullptr;
+    if (refined == nullptr) return render_status(now, info, nullptr, fine, command, h);
     const refine::RefinedView view = refined->load();
-    return render_status(now, info, &view, fine, command);
+    return render_status(now, info, &view, fine, command, h);
   }
+  std::optional<health::HealthView> health_snapshot() const {
+    if (health == nullptr) return std::nullopt;
+    return health->view();
+  }
+  bool handle_health(Client& client, const ParsedRequest& request, CommandRecord& record);
   // The audit trail: every outcome of a mutating request is logged and the latest kept.
   std::optional<CommandRecord> last_command;
   void audit(CommandRecord record, CommandOutcome outcome, std::string message) {
@@ -540,9 +571,16 @@ void ApiServer::Impl::handle_line(std::uint64_t id, Client& client, std::string_
       }
       send(client, render_watch(request.enable, request.rate_hz));
       return;
+    case RequestKind::health:
+    case RequestKind::baseline_show:
+      send(client, health_reply(request.kind, health));
+      return;
     case RequestKind::reset:
     case RequestKind::excitation:
     case RequestKind::clear_fault:
+    case RequestKind::health_ack:
+    case RequestKind::baseline_save:
+    case RequestKind::baseline_clear:
       break;
   }
   const char* name = request_name(request.kind);
@@ -565,6 +603,7 @@ void ApiServer::Impl::handle_line(std::uint64_t id, Client& client, std::string_
     }
     return;
   }
+  if (handle_health(client, request, record)) return;
   if (commands.size() >= kCommandRingSize) {
     const std::string busy = "busy: " + std::to_string(commands.size()) +
                              " commands are waiting for the loop; retry '" + name + "' in a moment";
@@ -582,6 +621,28 @@ void ApiServer::Impl::handle_line(std::uint64_t id, Client& client, std::string_
   commands.push_back(std::move(command));
   client.awaiting_ack = true;
   service_commands(now);
+}
+
+// The health requests are carried out here (the monitor's thread picks them up through its
+// mailbox), not by the loop: answered and audited at once.
+bool ApiServer::Impl::handle_health(Client& client, const ParsedRequest& request,
+                                    CommandRecord& record) {
+  if (!is_health_command(request.kind)) return false;
+  const char* name = request_name(request.kind);
+  HealthOutcome outcome;
+  if (health == nullptr) {
+    outcome.message = kNoHealth;
+  } else if (request.kind == RequestKind::health_ack) {
+    outcome = health->acknowledge(state.load().uptime_s);
+  } else if (request.kind == RequestKind::baseline_save) {
+    outcome = health->save_baseline(state.load().uptime_s);
+  } else {
+    outcome = health->clear_baseline();
+  }
+  send(client, render_ack(name, outcome.ok, outcome.message));
+  audit(std::move(record), outcome.ok ? CommandOutcome::done : CommandOutcome::failed,
+        outcome.message);
+  return true;
 }
 
 void ApiServer::Impl::send(Client& client, std::string_view text) {
@@ -822,6 +883,10 @@ ApiServer::ApiServer(ServerSettings settings, ServerInfo info,
                      const rt::LatencyHistogram* lateness)
     : impl_(std::make_unique<Impl>(std::move(settings), std::move(info), state, commands, refined,
                                    lateness)) {}
+
+void ApiServer::set_health(HealthControl* health) noexcept {
+  impl_->health = health;
+}
 
 ApiServer::~ApiServer() {
   stop();

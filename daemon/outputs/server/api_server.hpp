@@ -13,6 +13,7 @@
 #include "daemon/core/rt/latency_histogram.hpp"
 #include "daemon/core/rt/seqlock.hpp"
 #include "daemon/core/rt/spsc_ring.hpp"
+#include "daemon/outputs/server/health_control.hpp"
 #include "daemon/outputs/server/peer_auth.hpp"
 #include "daemon/outputs/server/settings.hpp"
 
@@ -29,6 +30,10 @@ class ApiServer {
   ~ApiServer();  // stop()s
   ApiServer(const ApiServer&) = delete;
   ApiServer& operator=(const ApiServer&) = delete;
+
+  // The actuator's health (null, the default: the refinement is off and health requests are
+  // answered with an ERROR). Before start(); must outlive the server.
+  void set_health(HealthControl* health) noexcept;
 
   // Binds the socket (replacing a stale socket file, refusing when another live daemon answers on
   // it), applies mode and group, and spawns the server thread. Throws std::runtime_error whose

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "daemon/analysis/refine/best.hpp"
+#include "daemon/outputs/server/render_health.hpp"
 
 namespace scp::daemon::server {
 namespace {
@@ -273,7 +274,7 @@ std::string render_watch(bool enable, double rate_hz) {
 std::string render_status(const PublishedState& state, const ServerInfo& info,
                           const refine::RefinedView* refined,
                           const rt::LatencyHistogram::Snapshot* lateness_ns,
-                          const CommandRecord* last_command) {
+                          const CommandRecord* last_command, const health::HealthView* health) {
   json out = {{"class", "STATUS"}, {"release", info.release}, {"driver", info.driver}};
   if (!info.actuator.empty()) out["actuator"] = info.actuator;
   if (!info.config_file.empty()) out["config_file"] = info.config_file;
@@ -357,16 +358,19 @@ std::string render_status(const PublishedState& state, const ServerInfo& info,
   }
   if (last_command != nullptr) put_last_command(out, *last_command);
   if (state.recording) out["recording"] = {{"dropped_rows", state.record_dropped}};
+  if (health != nullptr) out["health"] = health_json(*health, /*full=*/true);
   return line(out);
 }
 
 std::string render_estimate(const EstimateView& estimate, const refine::RefinedView* refined,
-                            double now_t) {
-  return line(estimate_json(estimate, refined, now_t));
+                            double now_t, const health::HealthView* health) {
+  return line(estimate_json(estimate, refined, now_t, health));
 }
 
-json estimate_json(const EstimateView& estimate, const refine::RefinedView* refined, double now_t) {
+json estimate_json(const EstimateView& estimate, const refine::RefinedView* refined, double now_t,
+                   const health::HealthView* health) {
   json out = {{"class", "ESTIMATE"}};
+  if (health != nullptr) out["health"] = health_json(*health, /*full=*/false);
   put_finite(out, "t", estimate.t);
   put_wall_clock(out, estimate.unix_ns);
   out["theta_hat"] = number_array(estimate.theta_hat);

@@ -6,6 +6,7 @@
 #include <string>
 #include <string_view>
 
+#include "daemon/analysis/health/health_view.hpp"
 #include "daemon/analysis/refine/refined_view.hpp"
 #include "daemon/core/published_state.hpp"
 #include "daemon/core/rt/latency_histogram.hpp"
@@ -19,7 +20,8 @@ inline constexpr int kProtoMajor = 1;
 // loop.lateness_histogram_ns (1 % resolution); utc/unix_ns in ESTIMATE and STATUS; STATUS
 // actuator, fault_count, recoveries, faults_cleared, last_fault, last_command, recording.
 // 1.6: best none and best_reason, paper_validation, refined.validation, voltage_interval,
-// nuisance and extensions (issue 28).
+// nuisance and extensions (issue 28); `health` in STATUS and ESTIMATE; requests health,
+// health-ack, baseline-show, baseline-save, baseline-clear (issue 30; docs/protocol.md).
 inline constexpr int kProtoMinor = 6;
 
 std::string render_version(std::string_view release);
@@ -33,13 +35,16 @@ std::string render_watch(bool enable, double rate_hz);
 std::string render_status(const PublishedState& state, const ServerInfo& info,
                           const refine::RefinedView* refined = nullptr,
                           const rt::LatencyHistogram::Snapshot* lateness = nullptr,
-                          const CommandRecord* last_command = nullptr);
+                          const CommandRecord* last_command = nullptr,
+                          const health::HealthView* health = nullptr);
 // `now_t` is the loop time (PublishedState::uptime_s): the age of the refined fit decides `best`.
+// `health` (null when the refinement is disabled) adds the short `health` object.
 std::string render_estimate(const EstimateView& estimate,
-                            const refine::RefinedView* refined = nullptr, double now_t = 0.0);
+                            const refine::RefinedView* refined = nullptr, double now_t = 0.0,
+                            const health::HealthView* health = nullptr);
 // The ESTIMATE object itself, which the batch summary extends (daemon/batch/).
 nlohmann::json estimate_json(const EstimateView& estimate, const refine::RefinedView* refined,
-                             double now_t);
+                             double now_t, const health::HealthView* health = nullptr);
 
 // "2026-11-23T08:30:00.123Z"
 std::string utc_time(std::int64_t unix_ns);

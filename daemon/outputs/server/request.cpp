@@ -13,19 +13,26 @@ namespace {
 
 using nlohmann::json;
 
-constexpr const char* kRequestList = "status, estimate, watch, reset, excitation, clear-fault";
+constexpr const char* kRequestList =
+    "status, estimate, watch, reset, excitation, clear-fault, health, health-ack, "
+    "baseline-show, baseline-save, baseline-clear";
 
 struct Entry {
   const char* name;
   RequestKind kind;
 };
-constexpr std::array<Entry, 6> kRequests{{
+constexpr std::array<Entry, 11> kRequests{{
     {"status", RequestKind::status},
     {"estimate", RequestKind::estimate},
     {"watch", RequestKind::watch},
     {"reset", RequestKind::reset},
     {"excitation", RequestKind::excitation},
     {"clear-fault", RequestKind::clear_fault},
+    {"health", RequestKind::health},
+    {"health-ack", RequestKind::health_ack},
+    {"baseline-show", RequestKind::baseline_show},
+    {"baseline-save", RequestKind::baseline_save},
+    {"baseline-clear", RequestKind::baseline_clear},
 }};
 
 ParsedRequest fail(std::string message) {
@@ -171,7 +178,12 @@ const char* request_name(RequestKind kind) noexcept {
 
 bool is_mutating(RequestKind kind) noexcept {
   return kind == RequestKind::reset || kind == RequestKind::excitation ||
-         kind == RequestKind::clear_fault;
+         kind == RequestKind::clear_fault || is_health_command(kind);
+}
+
+bool is_health_command(RequestKind kind) noexcept {
+  return kind == RequestKind::health_ack || kind == RequestKind::baseline_save ||
+         kind == RequestKind::baseline_clear;
 }
 
 ParsedRequest parse_request(std::string_view line) {
@@ -212,6 +224,11 @@ ParsedRequest parse_request(std::string_view line) {
     case RequestKind::estimate:
     case RequestKind::reset:
     case RequestKind::clear_fault:
+    case RequestKind::health:
+    case RequestKind::health_ack:
+    case RequestKind::baseline_show:
+    case RequestKind::baseline_save:
+    case RequestKind::baseline_clear:
       problem = check_members(reader, request_name(out.kind), {});
       break;
     case RequestKind::watch:

@@ -8,7 +8,19 @@
 
 namespace scp::daemon::server {
 
-enum class RequestKind { status, estimate, watch, reset, excitation, clear_fault };
+enum class RequestKind {
+  status,
+  estimate,
+  watch,
+  reset,
+  excitation,
+  clear_fault,
+  health,
+  health_ack,
+  baseline_show,
+  baseline_save,
+  baseline_clear
+};
 
 struct ParsedRequest {
   bool ok = false;
@@ -24,8 +36,10 @@ inline constexpr double kMaxWatchHz = 1000.0;
 // Throws only std::bad_alloc.
 ParsedRequest parse_request(std::string_view line);
 
-// Mutating requests go through the loop and need privilege.
+// Mutating requests need privilege; those of the loop go through it.
 bool is_mutating(RequestKind kind) noexcept;
+// The mutating requests about the actuator's health, carried out by the server itself.
+bool is_health_command(RequestKind kind) noexcept;
 const char* request_name(RequestKind kind) noexcept;
 
 }  // namespace scp::daemon::server

@@ -12,5 +12,10 @@ std::string format_status(const nlohmann::json& status);
 std::string format_estimate(const nlohmann::json& estimate);
 // One line per ESTIMATE for `watch`.
 std::string format_estimate_line(const nlohmann::json& estimate);
+// The `health` object (HEALTH, STATUS): state, the latest change point, drifts, the latest
+// window's deviation from the baseline.
+std::string format_health(const nlohmann::json& health);
+// A BASELINE reply: file, actuator, verdict, θ with σ.
+std::string format_baseline(const nlohmann::json& baseline);
 
 }  // namespace scp::daemon::ctl

@@ -47,9 +47,16 @@ scp::cli::ProgramInfo program_info() {
       "tables (with --json, the daemon's objects unchanged, one per line), watch one line per "
       "estimate, and wait blocks until the daemon is running or its estimate has converged, so "
       "that scripts can wait for health like chronyc waitsync.",
-      "Reading (status, get, watch, wait) is open to anyone who can connect to the socket. reset, "
-      "excitation and clear-fault change the daemon's state and need root, the daemon's user or "
-      "the group named by socket.group in scp-estimator.yaml(5)."};
+      "health prints whether the actuator is still the one its baseline describes: ok, drift or "
+      "changed (with the parameter, its change with σ and the onset), or blind without a "
+      "baseline; baseline save stores the current refined estimate as the healthy actuator "
+      "(refused until the refinement has converged), baseline show prints it, baseline clear "
+      "removes it, health ack acknowledges a latched drift or change "
+      "(/usr/share/doc/scp-estimator/health.md).",
+      "Reading (status, get, watch, wait, health, baseline show) is open to anyone who can "
+      "connect to the socket. reset, excitation, clear-fault, health ack, baseline save and "
+      "baseline clear change the daemon's state and need root, the daemon's user or the group "
+      "named by socket.group in scp-estimator.yaml(5); they are audited in the journal."};
   info.exit_codes = {
       {"0", "success (wait: the state was reached)"},
       {"1",
@@ -68,9 +75,14 @@ scp::cli::ProgramInfo program_info() {
       {"scp-estimatorctl metrics | promtool check metrics",
        "print the Prometheus metrics and lint them"},
       {"scp-estimatorctl wait --state converged --timeout 600 && scp-estimatorctl get --json",
-       "wait up to ten minutes for convergence, then save the estimate"}};
+       "wait up to ten minutes for convergence, then save the estimate"},
+      {"scp-estimatorctl baseline save", "this is the healthy actuator: tell me when it changes"},
+      {"scp-estimatorctl health", "has it changed, how much, since when"}};
   info.see_also = {"scp-estimatord(8)", "scp-estimator.yaml(5)", "scp-simdaq(1)"};
-  info.completion_words = {{"excitation", "on off"}, {"wait", "running converged"}};
+  info.completion_words = {{"excitation", "on off"},
+                           {"wait", "running converged"},
+                           {"health", "ack"},
+                           {"baseline", "save show clear"}};
   return info;
 }
 
@@ -169,7 +181,9 @@ struct Options {
   long count = 0;        // watch
   std::string target;    // wait
   double wait_limit_s = 0.0;
-  std::string on_off;  // excitation
+  std::string on_off;           // excitation
+  std::string health_action;    // health: "" or ack
+  std::string baseline_action;  // baseline: save, show or clear
 };
 
 struct Subcommands {
@@ -181,6 +195,8 @@ struct Subcommands {
   CLI::App* reset;
   CLI::App* excitation;
   CLI::App* clear_fault;
+  CLI::App* health;
+  CLI::App* baseline;
 };
 
 void declare_options(CLI::App& app, Options& o) {
@@ -232,6 +248,14 @@ Subcommands declare_subcommands(CLI::App& app, Options& o) {
       ->required()
       ->check(CLI::IsMember({"on", "off"}));
   c.clear_fault = app.add_subcommand("clear-fault", "leave the fault state if its cause is gone");
+  c.health = app.add_subcommand(
+      "health", "has the actuator changed since its baseline (ack: acknowledge a latched state)");
+  c.health->add_option("action", o.health_action, "ack")->check(CLI::IsMember({"ack"}));
+  c.baseline = app.add_subcommand(
+      "baseline", "save the current refined estimate as the healthy actuator, show or clear it");
+  c.baseline->add_option("action", o.baseline_action, "save, show or clear")
+      ->required()
+      ->check(CLI::IsMember({"save", "show", "clear"}));
   return c;
 }
 
@@ -246,6 +270,23 @@ int print_metrics(Connection& connection) {
   std::cout << scp::daemon::metrics::exposition(status, estimate,
                                                 status.value("actuator", "scp-estimator"));
   return 0;
+}
+
+int health(Connection& connection, const Options& o) {
+  if (o.health_action == "ack")
+    return print_ack(connection.exchange({{"request", "health-ack"}}), o.raw);
+  const json reply = connection.exchange({{"request", "health"}});
+  if (reply.value("class", "") == "ERROR")
+    throw CtlError(kExitRefused, "scp-estimatord: " + reply.value("message", "(no message)"));
+  return print_reply(reply, o.raw, scp::daemon::ctl::format_health);
+}
+
+int baseline(Connection& connection, const Options& o) {
+  const json reply = connection.exchange({{"request", "baseline-" + o.baseline_action}});
+  if (reply.value("class", "") == "ERROR")
+    throw CtlError(kExitRefused, "scp-estimatord: " + reply.value("message", "(no message)"));
+  if (o.baseline_action != "show") return print_ack(reply, o.raw);
+  return print_reply(reply, o.raw, scp::daemon::ctl::format_baseline);
 }
 
 int run(const Subcommands& c, const Options& o) {
@@ -266,6 +307,8 @@ int run(const Subcommands& c, const Options& o) {
   }
   if (c.clear_fault->parsed())
     return print_ack(connection.exchange({{"request", "clear-fault"}}), o.raw);
+  if (c.health->parsed()) return health(connection, o);
+  if (c.baseline->parsed()) return baseline(connection, o);
   return 0;
 }
 

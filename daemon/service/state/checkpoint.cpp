@@ -318,6 +318,15 @@ std::optional<Checkpoint> parse(const std::string& text, std::string& reason) {
 
 }  // namespace
 
+void write_state_file(const std::string& path, const std::string& data) {
+  write_atomically(path, data);
+  remove_stale_temporaries(path);
+}
+
+bool read_state_file(const std::string& path, std::string& out, std::string& reason) {
+  return read_file(path, out, reason);
+}
+
 std::uint64_t fnv1a64(std::string_view data) noexcept {
   std::uint64_t h = 0xcbf29ce484222325ULL;
   for (unsigned char c : data) {

@@ -49,6 +49,12 @@ void save_checkpoint(const std::string& path, const Checkpoint& checkpoint);
 // information matrices not symmetric positive definite). Never throws for bad file contents.
 std::optional<Checkpoint> load_checkpoint(const std::string& path, std::string& warning);
 
+// The same atomic write and guarded read for the other small state files (the health baseline):
+// write_state_file throws std::runtime_error naming the path; read_state_file returns false with
+// `reason` (missing, not a regular file, not ours, too large).
+void write_state_file(const std::string& path, const std::string& data);
+bool read_state_file(const std::string& path, std::string& out, std::string& reason);
+
 // FNV-1a, 64 bit (exposed for tests).
 std::uint64_t fnv1a64(std::string_view data) noexcept;
 

@@ -1,0 +1,79 @@
+#include "daemon/analysis/health/health_link.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+#include <cstdio>
+
+namespace scp::daemon::health {
+
+namespace {
+
+using scp::health::EventKind;
+using scp::health::kParameterNames;
+
+std::string percent(double fraction, const char* format = "%+.1f %%") {
+  char text[32];
+  std::snprintf(text, sizeof(text), format, 100.0 * fraction);
+  return text;
+}
+
+std::string describe_change(const scp::health::ChangePoint& c) {
+  char head[128];
+  std::snprintf(head, sizeof(head), "(onset %.1f s, %s detector)", c.onset,
+                scp::health::detector_name(c.detector));
+  std::string text = head;
+  if (c.parameter < 0) return text;
+  const scp::health::ParameterShift& p = c.parameters[static_cast<std::size_t>(c.parameter)];
+  const double reference = p.relative != 0.0 ? p.delta / p.relative : 0.0;
+  const double relative_sigma = reference != 0.0 ? p.sigma / std::abs(reference) : 0.0;
+  return text + ": " + kParameterNames[static_cast<std::size_t>(c.parameter)] + " " +
+         percent(p.relative) + " (σ " + percent(relative_sigma, "%.2g %%") + ")";
+}
+
+std::string describe_drift(const std::array<scp::health::ParameterTrend, 6>& trend) {
+  std::string text;
+  for (std::size_t i = 0; i < trend.size(); ++i) {
+    if (!trend[i].drifting) continue;
+    text += (text.empty() ? ": " : ", ") + std::string(kParameterNames[i]) + " " +
+            percent(trend[i].relative_per_hour) + "/h";
+  }
+  return text;
+}
+
+}  // namespace
+
+std::vector<scp::health::HealthEvent> apply_commands(HealthRunner& runner, HealthLink& link) {
+  for (HealthCommand& command : link.take()) {
+    if (command.kind == HealthCommand::Kind::baseline) {
+      runner.set_baseline(command.baseline, command.source);
+    } else {
+      runner.acknowledge(command.t);
+    }
+  }
+  return runner.take_events();
+}
+
+std::string describe(const scp::health::HealthEvent& event) {
+  char head[96];
+  std::snprintf(head, sizeof(head), "%s at %.1f s", scp::health::event_name(event.kind), event.t);
+  switch (event.kind) {
+    case EventKind::changed:
+      return head + std::string(" ") + describe_change(event.change);
+    case EventKind::drift:
+      return head + describe_drift(event.trend);
+    case EventKind::acknowledged:
+      break;
+  }
+  return head;
+}
+
+void log_event(const scp::health::HealthEvent& event) {
+  if (event.kind == EventKind::acknowledged) {
+    spdlog::info("health: {}; state {}", describe(event), scp::health::state_name(event.state));
+  } else {
+    spdlog::warn("health: actuator {}", describe(event));
+  }
+}
+
+}  // namespace scp::daemon::health

@@ -1,0 +1,180 @@
+#include "daemon/analysis/health/health_runner.hpp"
+
+#include <cmath>
+#include <cstring>
+
+#include "refine/model_simulator.hpp"
+
+namespace scp::daemon::health {
+
+namespace {
+
+using scp::health::HealthMonitor;
+using scp::health::Matrix26;
+using scp::health::Vector2;
+using scp::refine::Verdict;
+
+const char* combined_verdict(const scp::refine::FitResult& fit) noexcept {
+  if (!fit.validated) return "untested";
+  const Verdict m = fit.validation.mechanical.verdict, t = fit.validation.thermal.verdict;
+  if (m == Verdict::kAdequate && t == Verdict::kAdequate) return "adequate";
+  // The worse of the two: structure over coloured noise over untested.
+  for (const Verdict v : {Verdict::kStructure, Verdict::kNoiseColored, Verdict::kUntested}) {
+    if (m == v || t == v) return scp::refine::verdict_name(v);
+  }
+  return "untested";
+}
+
+template <std::size_t N>
+void copy_text(std::array<char, N>& out, const std::string& text) noexcept {
+  out.fill('\0');
+  std::strncpy(out.data(), text.c_str(), N - 1);
+}
+
+}  // namespace
+
+HealthRunner::HealthRunner(const scp::health::HealthSettings& settings) : settings_(settings) {}
+
+void HealthRunner::set_baseline(const std::optional<Baseline>& baseline,
+                                const std::string& source) {
+  monitor_.reset();
+  simulator_.reset();
+  view_.baseline_present = baseline.has_value();
+  view_.report = {};
+  view_.last_window_unix_ns = 0;
+  copy_text(view_.baseline_file, baseline ? source : std::string());
+  if (baseline) {
+    const scp::health::WindowEstimate& w = baseline->window;
+    for (int i = 0; i < 6; ++i) {
+      view_.baseline_theta[static_cast<std::size_t>(i)] = w.theta[i];
+      view_.baseline_sigma[static_cast<std::size_t>(i)] =
+          std::sqrt(std::max(0.0, w.covariance(i, i)));
+    }
+    view_.baseline_t_begin = w.t_begin;
+    view_.baseline_t_end = w.t_end;
+    view_.baseline_saved_unix_ns = baseline->saved_unix_ns;
+    monitor_.emplace(settings_, w);
+  }
+  publish();
+}
+
+void HealthRunner::acknowledge(double t) {
+  if (monitor_) monitor_->acknowledge(t);
+  publish();
+}
+
+void HealthRunner::on_sample(const scp::refine::WindowSample& sample) noexcept {
+  try {
+    feed(sample);
+  } catch (...) {
+    simulator_.reset();  // only the monitor's block history allocates: wait for the next fit
+  }
+}
+
+void HealthRunner::feed(const scp::refine::WindowSample& sample) {
+  if (!monitor_ || !simulator_ || !(sample.t > last_sample_.t)) return;
+  const scp::health::Reference reference = monitor_->reference_at(sample.t);
+  if (!reference.valid) {
+    last_sample_ = sample;
+    return;
+  }
+  if (reference.generation != generation_) {
+    // The reference moved (a new window): carry on from the simulated state with the new θ.
+    const scp::refine::ModelState s = simulator_->state();
+    simulator_.emplace(reference.theta, scp::refine::InitialState(s.x, s.xdot, s.tbar));
+    generation_ = reference.generation;
+  }
+  simulator_->advance(last_sample_, sample, input_delay_);
+  last_sample_ = sample;
+  const scp::refine::ModelState& s = simulator_->state();
+  const Vector2 residual((sample.x - s.x) * inverse_sigma_[0],
+                         (sample.tbar - s.tbar) * inverse_sigma_[1]);
+  Matrix26 sensitivity;
+  sensitivity.row(0) = simulator_->dx().head<6>().transpose() * inverse_sigma_[0];
+  sensitivity.row(1) = simulator_->dtbar().head<6>().transpose() * inverse_sigma_[1];
+  if (!residual.allFinite() || !sensitivity.allFinite()) {
+    simulator_.reset();  // diverged: wait for the next fit
+    return;
+  }
+  monitor_->add_sample(sample.t, residual, sensitivity);
+  ++view_.residual_samples;
+}
+
+void HealthRunner::on_fit(const scp::refine::FitResult& fit,
+                          std::span<const scp::refine::WindowSample> window, std::int64_t wall_ns) {
+  const bool usable =
+      fit.converged && fit.theta.allFinite() && fit.covariance.allFinite() && !window.empty();
+  if (!usable) return;
+  remember_fit(fit);
+  if (!monitor_ && adopt_first_fit_) {
+    Baseline first;
+    first.window = {fit.t_begin, fit.t_end, fit.theta, fit.covariance};
+    first.verdict = view_.fit_verdict.data();
+    set_baseline(first, "the run's first converged window");
+    adopt_first_fit_ = false;
+  }
+  if (monitor_) {
+    scp::health::WindowEstimate w;
+    w.t_begin = fit.t_begin;
+    w.t_end = fit.t_end;
+    w.theta = fit.theta;
+    w.covariance = fit.covariance;
+    monitor_->add_window(w);
+    view_.last_window_unix_ns = wall_ns;
+    seed(fit, window);
+  }
+  publish();
+}
+
+void HealthRunner::remember_fit(const scp::refine::FitResult& fit) {
+  view_.fit_present = true;
+  view_.fit_t_begin = fit.t_begin;
+  view_.fit_t_end = fit.t_end;
+  for (int i = 0; i < 6; ++i) {
+    view_.fit_theta[static_cast<std::size_t>(i)] = fit.theta[i];
+    for (int k = 0; k < 6; ++k)
+      view_.fit_covariance[static_cast<std::size_t>(6 * i + k)] = fit.covariance(i, k);
+  }
+  view_.fit_validated = fit.validated;
+  copy_text(view_.fit_verdict, combined_verdict(fit));
+}
+
+void HealthRunner::seed(const scp::refine::FitResult& fit,
+                        std::span<const scp::refine::WindowSample> window) {
+  simulator_.reset();
+  const double sx = fit.noise_sigma[0], st = fit.noise_sigma[1];
+  if (!(sx > 0.0) || !(st > 0.0) || !std::isfinite(sx) || !std::isfinite(st)) return;
+  // The fitted model through its own window, to the state at its last sample.
+  scp::refine::ModelState state{fit.initial_state[0], fit.initial_state[1], fit.initial_state[2]};
+  scp::refine::ThermalCache cache;
+  for (std::size_t i = 1; i < window.size(); ++i) {
+    scp::refine::advance_interval(fit.theta, window[i - 1], window[i], fit.input_delay_s, state,
+                                  cache);
+  }
+  const scp::health::Reference reference = monitor_->reference_at(window.back().t);
+  if (!reference.valid) return;
+  simulator_.emplace(reference.theta, scp::refine::InitialState(state.x, state.xdot, state.tbar));
+  generation_ = reference.generation;
+  last_sample_ = window.back();
+  input_delay_ = fit.input_delay_s;
+  inverse_sigma_ = Vector2(1.0 / sx, 1.0 / st);
+  ++view_.reseeds;
+}
+
+std::vector<scp::health::HealthEvent> HealthRunner::take_events() {
+  std::vector<scp::health::HealthEvent> events;
+  if (monitor_) events = monitor_->take_events();
+  publish();
+  return events;
+}
+
+void HealthRunner::publish() noexcept {
+  if (monitor_) view_.report = monitor_->report();
+}
+
+int HealthRunner::state_code() const noexcept {
+  if (!monitor_) return 0;
+  return 1 + static_cast<int>(monitor_->report().state);
+}
+
+}  // namespace scp::daemon::health

@@ -1,0 +1,145 @@
+#include "daemon/outputs/server/render_health.hpp"
+
+#include <cmath>
+
+#include "daemon/outputs/server/render.hpp"
+
+namespace scp::daemon::server {
+
+namespace {
+
+using nlohmann::json;
+using scp::health::kBlockNames;
+using scp::health::kParameterNames;
+using scp::health::kParams;
+
+// A finite number, or null (JSON has no NaN).
+json number(double value) {
+  return std::isfinite(value) ? json(value) : json(nullptr);
+}
+
+json shift_json(int i, const scp::health::ParameterShift& p) {
+  return {{"parameter", kParameterNames[static_cast<std::size_t>(i)]},
+          {"delta", number(p.delta)},
+          {"sigma", number(p.sigma)},
+          {"z", number(p.z)},
+          {"relative", number(p.relative)}};
+}
+
+json change_json(const scp::health::ChangePoint& c, bool full) {
+  json out = {
+      {"onset", c.onset},
+      {"detected_at", c.detected_at},
+      {"detector", scp::health::detector_name(c.detector)},
+      {"parameter", c.parameter >= 0 ? json(kParameterNames[static_cast<std::size_t>(c.parameter)])
+                                     : json(nullptr)}};
+  json parameters = json::array();
+  for (int i = 0; i < kParams; ++i) {
+    const auto& p = c.parameters[static_cast<std::size_t>(i)];
+    // The short form names the parameter found first and whatever moved beyond 2σ with it.
+    if (!p.tested || (!full && i != c.parameter && !(std::abs(p.z) >= 2.0))) continue;
+    parameters.push_back(shift_json(i, p));
+  }
+  out["parameters"] = std::move(parameters);
+  return out;
+}
+
+json drift_json(const scp::health::DriftReport& d, bool full) {
+  json out = {{"valid", d.valid}, {"windows", d.windows}, {"data_span_s", d.data_span_s}};
+  json parameters = json::array();
+  for (int i = 0; i < kParams; ++i) {
+    const auto& p = d.parameters[static_cast<std::size_t>(i)];
+    if (!p.tested || (!full && !p.drifting)) continue;
+    parameters.push_back({{"parameter", kParameterNames[static_cast<std::size_t>(i)]},
+                          {"per_hour", number(p.per_hour)},
+                          {"sigma_per_hour", number(p.sigma_per_hour)},
+                          {"relative_per_hour", number(p.relative_per_hour)},
+                          {"drifting", p.drifting}});
+  }
+  out["parameters"] = std::move(parameters);
+  return out;
+}
+
+json wald_json(const scp::health::WaldResult& w) {
+  json blocks = json::object();
+  for (int b = 0; b < scp::health::kBlocks; ++b) {
+    const auto& block = w.blocks[static_cast<std::size_t>(b)];
+    blocks[kBlockNames[static_cast<std::size_t>(b)]] = {{"chi2", number(block.statistic)},
+                                                        {"threshold", number(block.threshold)},
+                                                        {"dof", block.dof},
+                                                        {"significant", block.significant}};
+  }
+  json parameters = json::array();
+  for (int i = 0; i < kParams; ++i) {
+    const auto& p = w.parameters[static_cast<std::size_t>(i)];
+    if (p.tested) parameters.push_back(shift_json(i, p));
+  }
+  return {{"blocks", std::move(blocks)}, {"parameters", std::move(parameters)}};
+}
+
+json indicators_json(const scp::health::Indicators& indicators) {
+  json out = json::object();
+  for (int i = 0; i < scp::health::kIndicators; ++i) {
+    const auto& v = indicators[static_cast<std::size_t>(i)];
+    if (!v.known) continue;
+    out[scp::health::kIndicatorNames[static_cast<std::size_t>(i)]] = {{"value", number(v.value)},
+                                                                      {"sigma", number(v.sigma)}};
+  }
+  return out;
+}
+
+json fast_json(const scp::health::FastReport& f) {
+  json ratio = json::object();
+  for (int i = 0; i < kParams; ++i)
+    ratio[kParameterNames[static_cast<std::size_t>(i)]] =
+        number(f.ratio[static_cast<std::size_t>(i)]);
+  return {{"active", f.active}, {"blocks", f.blocks}, {"cusum_ratio", std::move(ratio)}};
+}
+
+void put_full(json& out, const health::HealthView& v) {
+  const scp::health::HealthReport& r = v.report;
+  out["drift"] = drift_json(r.drift, true);
+  out["fast"] = fast_json(r.fast);
+  if (r.has_window) {
+    out["baseline_deviation"] = wald_json(r.baseline_deviation);
+    out["indicators"] = indicators_json(r.indicators);
+  }
+  out["baseline_indicators"] = indicators_json(r.baseline_indicators);
+  out["windows"] = r.windows;
+  out["windows_rejected"] = r.windows_rejected;
+  out["dismissed"] = r.dismissed;
+  out["acknowledged"] = r.acknowledged;
+  out["residual_samples"] = v.residual_samples;
+  out["baseline_estimate"] = {{"file", std::string(v.baseline_file.data())},
+                              {"theta", v.baseline_theta},
+                              {"sigma", v.baseline_sigma}};
+  put_wall_clock(out["baseline_estimate"], v.baseline_saved_unix_ns);
+  if (v.last_window_unix_ns != 0) {
+    out["last_window"] = json::object();
+    put_wall_clock(out["last_window"], v.last_window_unix_ns);
+  }
+}
+
+}  // namespace
+
+json health_json(const health::HealthView& v, bool full) {
+  if (!v.baseline_present) {
+    return {{"state", "blind"},
+            {"baseline", false},
+            {"reason",
+             "no baseline: save one with 'scp-estimatorctl baseline save' once the "
+             "refined estimate has converged"}};
+  }
+  const scp::health::HealthReport& r = v.report;
+  json out = {{"state", scp::health::state_name(r.state)},
+              {"since", r.since},
+              {"baseline", true},
+              {"changes", r.changes},
+              {"drifts", r.drifts}};
+  if (r.has_change) out["change"] = change_json(r.change, full);
+  if (r.drift.valid) out["drift"] = drift_json(r.drift, false);
+  if (full) put_full(out, v);
+  return out;
+}
+
+}  // namespace scp::daemon::server
