@@ -76,9 +76,9 @@ double steady_tbar(std::span<const WindowSample> window, const ParamVector& p) {
 
 StopReason verdict(const FitContext& ctx, const FitState& state,
                    const CovarianceOutcome& covariance) {
-  const TbarRange seen{std::min(covariance.model_range.lo, state.range.lo),
-                       std::max({covariance.model_range.hi, state.range.hi,
-                                 steady_tbar(ctx.window, state.p)})};
+  const TbarRange seen{
+      std::min(covariance.model_range.lo, state.range.lo),
+      std::max({covariance.model_range.hi, state.range.hi, steady_tbar(ctx.window, state.p)})};
   if (!stable_over(state.p, seen)) return StopReason::model_unstable;
   if (!(stiffness(state.p, seen) * ctx.budget.mean_interval() <= kUnresolvedPolePerSample))
     return StopReason::fast_pole_unresolved;

@@ -15,8 +15,8 @@
 #include "drivers/sim/sim_settings.hpp"
 #include "estimator/estimator.hpp"
 #include "excitation/excitation_settings.hpp"
-#include "refine/fit_terms.hpp"
 #include "health/settings.hpp"
+#include "refine/fit_terms.hpp"
 
 namespace scp::config {
 

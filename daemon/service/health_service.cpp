@@ -23,9 +23,12 @@ std::optional<health::Baseline> from_view(const health::HealthView& v, std::stri
     return std::nullopt;
   }
   const std::string verdict(v.fit_verdict.data());
-  if (v.fit_validated && verdict != "adequate") {
+  // `untested` (a window shorter than the thermal block's time scale) says nothing against the
+  // model: the baseline keeps the verdict, and `baseline show` prints it.
+  if (v.fit_validated && verdict != "adequate" && verdict != "untested") {
     why = "the refined estimate's validation is '" + verdict +
-          "', not 'adequate': a baseline must describe the model well (docs/health.md)";
+          "', not 'adequate': a baseline must describe the model well; see best_reason in "
+          "ESTIMATE (docs/health.md)";
     return std::nullopt;
   }
   health::Baseline b;
