@@ -102,6 +102,11 @@ struct ValidationSettings {
   // Tests switched off (e.g. a targeted test whose term the fit now estimates; a term whose
   // sensitivity is in the span of J drops out by itself).
   std::array<bool, kValidationTests> disabled{};
+  // Relative RMS residual (‖ε‖/‖y − mean y‖) below which the residual holds only the
+  // simulation's and the arithmetic's rounding, and no test is meaningful (a noise-free
+  // simulation); 0 = off. A block below it is `adequate` whatever its tests say
+  // (BlockReport::below_numerical_floor; docs/validation.md).
+  double numerical_floor = 1e-6;
 };
 
 // One sample of the fit's final pass.
@@ -148,6 +153,9 @@ struct BlockReport {
   int blocks = 0;
   double whiteness_lags_s = 0.0;     // Ljung–Box lags, in seconds
   double independence_lags_s = 0.0;  // the independence test's input lags, in seconds
+  // ‖ε‖/‖y − mean y‖ < ValidationSettings::numerical_floor: the verdict is `adequate` (decisive
+  // none) whatever the tests, whose outcomes stay as computed (`untested` stays untested).
+  bool below_numerical_floor = false;
 };
 
 struct ValidationReport {

@@ -116,9 +116,8 @@ void summarize(BlockReport& r, const Block& b, int whiteness_lags, int independe
 
 // Levels (Šidák over the block's performed tests), failures, and the verdict naming one test: a
 // failed targeted test with the largest F (the term that explains most of what is left; all have
-// one degree of freedom), else the independence test; else the noise test of smallest p.
-constexpr double kResolutionFloorPercent = 1e-4;  // NRMSE 1e-6
-
+// one degree of freedom), else the independence test; else the noise test of smallest p. A block
+// below the numerical floor is adequate whatever its tests say.
 void decide(ValidationReport& report, ValidationBlock which, double family) {
   int performed = 0;
   bool on_time_scale = false;  // a test of the decimated residual ran (not only the noise ratio)
@@ -160,10 +159,7 @@ void decide(ValidationReport& report, ValidationBlock which, double family) {
   } else {
     r.verdict = Verdict::kAdequate;
   }
-  // A residual below any sensor's resolution (a 20-bit converter's step is 1e-6 of its range)
-  // holds only the discretization's and the arithmetic's rounding: its structure is significant
-  // on a noise-free simulation and of no consequence for θ̂.
-  if (r.verdict != Verdict::kUntested && 100.0 - r.fit_percent < kResolutionFloorPercent) {
+  if (r.verdict != Verdict::kUntested && r.below_numerical_floor) {
     r.verdict = Verdict::kAdequate;
     r.decisive = ValidationTest::kNone;
   }
@@ -217,6 +213,8 @@ ValidationReport ResidualValidator::finish() const {
     r.residual_rms = n > 0.0 ? std::sqrt(rss_[c] / n) : 0.0;
     const double sigma = settings_.declared_noise[c];
     r.noise_ratio = sigma > 0.0 ? r.residual_rms / sigma : 0.0;
+    r.below_numerical_floor =
+        spread > 0.0 && std::sqrt(rss_[c] / spread) < settings_.numerical_floor;
   }
   summarize(report.mechanical, mech, mech_white, mech_ind);
   summarize(report.thermal, therm, therm_white, therm_ind);

@@ -130,6 +130,62 @@ TEST(ValidationFits, CoolingGrowingWithTemperatureIsNamed) {
       {"0.5 %/°C, N3", {.cooling_tempco = 0.005}, kN3, ValidationTest::kCoolingTempco, 0.005, 0.5});
 }
 
+// The numerical floor (ValidationSettings::numerical_floor): a noise-free window of the project's
+// plant (drivers/sim, RK4: not the fit's discretization) fitted as the paper model leaves only
+// the simulators' and the arithmetic's rounding; both blocks are adequate and say why, with the
+// tests' outcomes as computed. With the floor off, the same outcomes decide the verdicts.
+TEST(ValidationFloor, ANoiseFreeFitIsBelowTheFloor) {
+  const auto w = test::record(test::paper_actuator(), kSeconds, 1e-3, test::paper_voltage());
+  Vector6 start = test::theta_of(test::paper_actuator());
+  start.head<4>() *= 0.17;
+  const FitResult r = fit(w, start, paper_model());
+  ASSERT_TRUE(r.validated) << r.message;
+  const ValidationReport on = validate_fit(w, r, ValidationSettings{});
+  ValidationSettings off_settings;
+  off_settings.numerical_floor = 0.0;
+  const ValidationReport off = validate_fit(w, r, off_settings);
+  for (ValidationBlock b : {ValidationBlock::kMechanical, ValidationBlock::kThermal}) {
+    const BlockReport &fitted = r.validation.block(b), &floor = on.block(b), &plain = off.block(b);
+    std::printf("%s: relative RMS %.3g; floor on: %s (%s); off: %s (%s)\n",
+                b == ValidationBlock::kMechanical ? "x" : "T", 1.0 - floor.fit_percent / 100.0,
+                verdict_name(floor.verdict), test_name(floor.decisive), verdict_name(plain.verdict),
+                test_name(plain.decisive));
+    EXPECT_TRUE(fitted.below_numerical_floor);
+    EXPECT_EQ(fitted.verdict, Verdict::kAdequate);
+    EXPECT_TRUE(floor.below_numerical_floor);
+    EXPECT_EQ(floor.verdict, Verdict::kAdequate);
+    EXPECT_EQ(floor.decisive, ValidationTest::kNone);
+    EXPECT_FALSE(plain.below_numerical_floor);
+    EXPECT_DOUBLE_EQ(plain.fit_percent, floor.fit_percent);
+  }
+  for (int i = 0; i < kValidationTests; ++i) {
+    EXPECT_EQ(on.tests[i].performed, off.tests[i].performed);
+    EXPECT_EQ(on.tests[i].failed, off.tests[i].failed);
+    EXPECT_DOUBLE_EQ(on.tests[i].p_value, off.tests[i].p_value);
+  }
+  // Measured: the rounding's structure fails the tests; without the floor neither block would
+  // pass a noise-free fit.
+  EXPECT_NE(off.mechanical.verdict, Verdict::kAdequate);
+  EXPECT_NE(off.thermal.verdict, Verdict::kAdequate);
+}
+
+// The floor hides no deviation: a noise-free window with a 50 µm displacement zero the fit holds
+// at 0 leaves a residual far above it, and the zero is named.
+TEST(ValidationFloor, ANoiseFreeDeviationIsStillNamed) {
+  const auto w = test::deviation_record(test::paper_actuator(), kSeconds, 1e-3,
+                                        test::paper_voltage(), {.displacement_zero = 50e-6});
+  Vector6 start = test::theta_of(test::paper_actuator());
+  start.head<4>() *= 0.17;
+  const FitResult r = fit(w, start, paper_model());
+  ASSERT_TRUE(r.validated) << r.message;
+  std::printf("x: fit %.6f %%, %s (%s)\n", r.validation.mechanical.fit_percent,
+              verdict_name(r.validation.mechanical.verdict),
+              test_name(r.validation.mechanical.decisive));
+  EXPECT_FALSE(r.validation.mechanical.below_numerical_floor);
+  EXPECT_EQ(r.validation.mechanical.verdict, Verdict::kStructure);
+  EXPECT_EQ(r.validation.mechanical.decisive, ValidationTest::kDisplacementZero);
+}
+
 }  // namespace
 }  // namespace scp::refine
 
