@@ -4,6 +4,7 @@
 
 #include "refine/covariance.hpp"
 #include "refine/stages.hpp"
+#include "refine/validate_fit.hpp"
 #include "refine/validation.hpp"
 
 namespace scp::refine {
@@ -55,28 +56,6 @@ void publish_residuals(const FitContext& ctx, const FitState& state, const PassR
                                      std::sqrt(pass.rss[1] / dof(n, parameters[1])));
 }
 
-// The validation of the final pass (refine/validation.hpp): time constants from θ̂ at the window's
-// mean measured T̄, the declared noise, the sensitivities of the free slots projected off, and the
-// targeted tests of the nuisance terms the fit estimates switched off.
-ValidationSettings final_validation(const FitContext& ctx, const ParamVector& p,
-                                    const FreeMask& free) {
-  double mean_tbar = 0.0;
-  for (const WindowSample& w : ctx.window) mean_tbar += w.tbar;
-  mean_tbar /= static_cast<double>(ctx.window.size());
-  const ModelTimeConstants tc = model_time_constants(theta_of(p), mean_tbar);
-  ValidationSettings v;
-  v.mechanical_time_constant_s = tc.mechanical_s;
-  v.thermal_time_constant_s = tc.thermal_s;
-  v.declared_noise = ctx.settings.declared_noise;
-  v.jacobian_columns = kParams;
-  for (int i = 0; i < kParams; ++i) v.fixed_columns[static_cast<std::size_t>(i)] = !free[i];
-  const auto disable = [&v](ValidationTest t) { v.disabled[static_cast<std::size_t>(t)] = true; };
-  if (free[kXZeroSlot]) disable(ValidationTest::kDisplacementZero);
-  if (free[kAmbientOffsetSlot]) disable(ValidationTest::kAmbientOffset);
-  if (free[kAmbientDriftSlot]) disable(ValidationTest::kAmbientDrift);
-  return v;
-}
-
 }  // namespace
 
 CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, FitResult& result) {
@@ -86,7 +65,10 @@ CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, Fi
   ps.hac_bandwidth = lags + 1;
   ps.batches = ctx.settings.covariance_batches;
   const FreeMask free = free_slots(ctx.settings.known, ctx.settings.nuisance);
-  ResidualValidator validator(theta_of(state.p), final_validation(ctx, state.p, free));
+  ValidationSettings vs;
+  vs.declared_noise = ctx.settings.declared_noise;
+  ResidualValidator validator(theta_of(state.p),
+                              validation_settings(ctx.window, theta_of(state.p), free, vs));
   ps.validator = &validator;
   const PassResult pass = ctx.budget.pass(ctx.window, state.p, ps);
   result.evaluations = ctx.budget.evaluations();

@@ -17,24 +17,39 @@ double mean_square_voltage(const WindowSample& prev, const WindowSample& cur,
   return tau > 0.0 ? sum / tau : cur.voltage * cur.voltage;
 }
 
-ValidationReport validate_fit(std::span<const WindowSample> window, const FitResult& fit,
-                              ValidationSettings settings, const std::array<bool, 6>& known) {
-  if (window.empty()) return ResidualValidator(fit.theta, settings).finish();
-  if (!(settings.mechanical_time_constant_s > 0.0) || !(settings.thermal_time_constant_s > 0.0)) {
+ValidationSettings validation_settings(std::span<const WindowSample> window, const Vector6& theta,
+                                       const std::optional<FreeMask>& free,
+                                       const ValidationSettings& base) {
+  ValidationSettings v = base;
+  if (!(v.mechanical_time_constant_s > 0.0) || !(v.thermal_time_constant_s > 0.0)) {
     double mean_tbar = 0.0;
     for (const WindowSample& w : window) mean_tbar += w.tbar;
-    mean_tbar /= static_cast<double>(window.size());
-    const ModelTimeConstants tc = model_time_constants(fit.theta, mean_tbar);
-    if (!(settings.mechanical_time_constant_s > 0.0))
-      settings.mechanical_time_constant_s = tc.mechanical_s;
-    if (!(settings.thermal_time_constant_s > 0.0)) settings.thermal_time_constant_s = tc.thermal_s;
+    if (!window.empty()) mean_tbar /= static_cast<double>(window.size());
+    const ModelTimeConstants tc = model_time_constants(theta, mean_tbar);
+    if (!(v.mechanical_time_constant_s > 0.0)) v.mechanical_time_constant_s = tc.mechanical_s;
+    if (!(v.thermal_time_constant_s > 0.0)) v.thermal_time_constant_s = tc.thermal_s;
   }
-  settings.jacobian_columns = kParams;
-  for (int i = 0; i < 6; ++i) settings.fixed_columns[static_cast<std::size_t>(i)] = known[i];
-  // The nuisance terms the fit held are not in its span either.
-  settings.fixed_columns[kXZeroSlot] = !fit.nuisance.x_zero.estimated;
-  settings.fixed_columns[kAmbientOffsetSlot] = !fit.nuisance.ambient_offset.estimated;
-  settings.fixed_columns[kAmbientDriftSlot] = !fit.nuisance.ambient_drift.estimated;
+  if (!free) {
+    v.jacobian_columns = 0;
+    return v;
+  }
+  v.jacobian_columns = kParams;
+  for (int i = 0; i < kParams; ++i) v.fixed_columns[static_cast<std::size_t>(i)] = !(*free)[i];
+  const auto disable = [&v](ValidationTest t) { v.disabled[static_cast<std::size_t>(t)] = true; };
+  if ((*free)[kXZeroSlot]) disable(ValidationTest::kDisplacementZero);
+  if ((*free)[kAmbientOffsetSlot]) disable(ValidationTest::kAmbientOffset);
+  if ((*free)[kAmbientDriftSlot]) disable(ValidationTest::kAmbientDrift);
+  return v;
+}
+
+ValidationReport validate_fit(std::span<const WindowSample> window, const FitResult& fit,
+                              ValidationSettings settings, const std::array<bool, 6>& known) {
+  FreeMask free = free_slots(known);
+  free[kXZeroSlot] = fit.nuisance.x_zero.estimated;
+  free[kAmbientOffsetSlot] = fit.nuisance.ambient_offset.estimated;
+  free[kAmbientDriftSlot] = fit.nuisance.ambient_drift.estimated;
+  settings = validation_settings(window, fit.theta, free, settings);
+  if (window.empty()) return ResidualValidator(fit.theta, settings).finish();
   ResidualValidator validator(fit.theta, settings);
   SensitivitySimulator sim(fit.theta, fit.initial_state);
   for (std::size_t k = 0; k < window.size(); ++k) {

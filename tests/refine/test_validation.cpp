@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "refine/probability.hpp"
+#include "refine/validate_fit.hpp"
 #include "refine/validation.hpp"
 #include "tests/refine/record.hpp"
 
@@ -282,6 +283,36 @@ TEST(Validation, ModelTimeConstantsAreThePoles) {
   }
   const Vector6 under = test::theta_of(test::underdamped_actuator());  // complex poles
   EXPECT_NEAR(model_time_constants(under, 0.0).mechanical_s, 2.0 / under[0], 1e-12);
+}
+
+// validation_settings(): one set-up for the fit's final pass, validate_fit and a prediction.
+TEST(Validation, SettingsComeFromTheWindowThetaAndTheFreeSlots) {
+  const Vector6& th = paper_theta();
+  std::vector<WindowSample> w(3);
+  w[0].tbar = 10.0, w[1].tbar = 20.0, w[2].tbar = 30.0;
+  ValidationSettings base;
+  base.declared_noise = Vector2(1e-7, 1e-3);
+  base.disabled[static_cast<int>(ValidationTest::kSensorLag)] = true;
+  FreeMask free = free_slots({false, false, false, false, true, false});  // θ5 held
+  free[kXZeroSlot] = true;                                                // the zero estimated
+  const ValidationSettings v = validation_settings(w, th, free, base);
+  const ModelTimeConstants tc = model_time_constants(th, 20.0);  // the mean measured T̄
+  EXPECT_DOUBLE_EQ(v.mechanical_time_constant_s, tc.mechanical_s);
+  EXPECT_DOUBLE_EQ(v.thermal_time_constant_s, tc.thermal_s);
+  EXPECT_EQ(v.declared_noise, base.declared_noise);
+  EXPECT_EQ(v.jacobian_columns, kParams);
+  for (int i = 0; i < kParams; ++i) EXPECT_EQ(v.fixed_columns[i], !free[i]) << i;
+  EXPECT_TRUE(v.disabled[static_cast<int>(ValidationTest::kSensorLag)]);
+  EXPECT_TRUE(v.disabled[static_cast<int>(ValidationTest::kDisplacementZero)]);
+  EXPECT_FALSE(v.disabled[static_cast<int>(ValidationTest::kAmbientOffset)]);
+  EXPECT_FALSE(v.disabled[static_cast<int>(ValidationTest::kAmbientDrift)]);
+
+  base.mechanical_time_constant_s = 0.5;  // given: kept
+  const ValidationSettings p = validation_settings(w, th, std::nullopt, base);
+  EXPECT_DOUBLE_EQ(p.mechanical_time_constant_s, 0.5);
+  EXPECT_DOUBLE_EQ(p.thermal_time_constant_s, tc.thermal_s);
+  EXPECT_EQ(p.jacobian_columns, 0);
+  EXPECT_FALSE(p.disabled[static_cast<int>(ValidationTest::kDisplacementZero)]);
 }
 
 }  // namespace
