@@ -3,39 +3,15 @@
 namespace scp::refine {
 
 const char* to_text(VoltageInterval interval) noexcept {
-  switch (interval) {
-    case VoltageInterval::before:
-      return "before";
-    case VoltageInterval::after:
-      return "after";
-    case VoltageInterval::estimate:
-      return "estimate";
-  }
-  return "";
+  return name_of(kVoltageIntervalNames, interval);
 }
 
 const char* to_text(ExtensionMode mode) noexcept {
-  switch (mode) {
-    case ExtensionMode::off:
-      return "off";
-    case ExtensionMode::on:
-      return "on";
-    case ExtensionMode::automatic:
-      return "auto";
-  }
-  return "";
+  return name_of(kExtensionModeNames, mode);
 }
 
 const char* to_text(InformationCriterion criterion) noexcept {
-  switch (criterion) {
-    case InformationCriterion::none:
-      return "none";
-    case InformationCriterion::bic:
-      return "bic";
-    case InformationCriterion::yic:
-      return "yic";
-  }
-  return "";
+  return name_of(kInformationCriterionNames, criterion);
 }
 
 }  // namespace scp::refine

@@ -8,6 +8,8 @@
 
 #include <cstdint>
 
+#include "common/names.hpp"
+
 namespace scp::refine {
 
 // Which interval of the record a row's voltage was applied over.
@@ -21,7 +23,11 @@ enum class VoltageInterval : std::uint8_t {
   // (FitResult::voltage_interval says which).
   estimate,
 };
-const char* to_text(VoltageInterval interval) noexcept;  // "before", "after", "estimate"
+inline constexpr NameTable<VoltageInterval, 3> kVoltageIntervalNames{
+    {{VoltageInterval::before, "before"},
+     {VoltageInterval::after, "after"},
+     {VoltageInterval::estimate, "estimate"}}};
+const char* to_text(VoltageInterval interval) noexcept;  // kVoltageIntervalNames
 
 // One nuisance term: estimated, or held at `value` (its units: FitSettings). Held at 0 by
 // default for now (the paper's model): estimated by default, the three output terms broke three
@@ -52,7 +58,9 @@ struct NuisanceSettings {
 // An extension of the paper's model: left out, always in, or kept where an information
 // criterion says it earns its place in the window (automatic).
 enum class ExtensionMode : std::uint8_t { off, on, automatic };
-const char* to_text(ExtensionMode mode) noexcept;  // "off", "on", "auto"
+inline constexpr NameTable<ExtensionMode, 3> kExtensionModeNames{
+    {{ExtensionMode::off, "off"}, {ExtensionMode::on, "on"}, {ExtensionMode::automatic, "auto"}}};
+const char* to_text(ExtensionMode mode) noexcept;  // kExtensionModeNames
 
 // θ keeps its meaning at T̄ = 0 (the ambient):
 //   resistance_tempco   ρ (1/°C): R = R0·(1 + ρT̄), the heating θ6·V²/(1 + ρT̄)
@@ -76,7 +84,11 @@ struct Nuisance {
 };
 
 enum class InformationCriterion : std::uint8_t { none, bic, yic };
-const char* to_text(InformationCriterion criterion) noexcept;  // "none", "bic", "yic"
+inline constexpr NameTable<InformationCriterion, 3> kInformationCriterionNames{
+    {{InformationCriterion::none, "none"},
+     {InformationCriterion::bic, "bic"},
+     {InformationCriterion::yic, "yic"}}};
+const char* to_text(InformationCriterion criterion) noexcept;  // kInformationCriterionNames
 
 // An extension as the fit left it.
 struct ExtensionEstimate {

@@ -125,6 +125,15 @@ TEST(FitTerms, TheDefaultsAreThePapersModel) {
     texts.insert(to_text(c));
   EXPECT_EQ(texts.size(), 9U);
   EXPECT_EQ(texts.count(""), 0U);
+  EXPECT_EQ(texts.count("unknown"), 0U);
+  // Each name reads back as its value (the daemon's configuration parses with these tables).
+  for (const auto v : {VoltageInterval::before, VoltageInterval::after, VoltageInterval::estimate})
+    EXPECT_EQ(value_of(kVoltageIntervalNames, to_text(v)), v);
+  for (const auto m : {ExtensionMode::off, ExtensionMode::on, ExtensionMode::automatic})
+    EXPECT_EQ(value_of(kExtensionModeNames, to_text(m)), m);
+  for (const auto c :
+       {InformationCriterion::none, InformationCriterion::bic, InformationCriterion::yic})
+    EXPECT_EQ(value_of(kInformationCriterionNames, to_text(c)), c);
 }
 
 TEST(Coordinates, MapTheFreeSlotsInOrderAndHoldTheRest) {
