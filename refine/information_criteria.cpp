@@ -10,6 +10,8 @@ double gaussian_deviance(std::span<const ChannelResiduals> channels) noexcept {
   double d = 0.0;
   for (const ChannelResiduals& c : channels) {
     if (c.samples == 0) continue;
+    // ln 0 = −∞: a perfect channel would make every comparison −∞ − (−∞) = NaN anyway.
+    if (!(c.rss > 0.0) || !std::isfinite(c.rss)) return std::numeric_limits<double>::quiet_NaN();
     const double n = static_cast<double>(c.samples);
     d += n * (std::log(2.0 * std::numbers::pi * c.rss / n) + 1.0);
   }

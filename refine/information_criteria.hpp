@@ -16,7 +16,8 @@ struct ChannelResiduals {
 
 // −2 ln L at the maximum for independent Gaussian channels, each with its own variance estimated
 // with the rest (σ̂²_c = RSS_c/N_c): Σ_c N_c·(ln(2π·RSS_c/N_c) + 1). A channel with no samples
-// counts nothing.
+// counts nothing; NaN when a channel with samples has an RSS that is not positive and finite (a
+// noise-free fit's 0 has no likelihood to compare: ln 0 = −∞).
 double gaussian_deviance(std::span<const ChannelResiduals> channels) noexcept;
 
 // Schwarz's BIC = −2 ln L + k·ln n, with n = Σ N_c scalar observations and k every estimated
@@ -25,6 +26,7 @@ double gaussian_deviance(std::span<const ChannelResiduals> channels) noexcept;
 // 1; an extension worth a decrease Δ(−2 ln L) ≈ χ²₁ on data without it enters only when χ²₁ >
 // ln n (13 at 300 000 samples: a false alarm of 3e-4). The likelihood counts each sample as
 // independent: residuals coloured over many samples make a spurious extension look stronger.
+// NaN as gaussian_deviance, or with no samples.
 double bic(std::span<const ChannelResiduals> channels, int parameters) noexcept;
 
 // Young's YIC for one output: ln(σ̂²/σ_y²) + ln((1/p)·Σ_i var(θ̂_i)/θ̂_i²), the residual variance

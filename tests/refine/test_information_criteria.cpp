@@ -5,6 +5,7 @@
 #include <Eigen/LU>
 #include <Eigen/QR>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <random>
 #include <vector>
@@ -59,6 +60,19 @@ Polynomial fit_polynomial(const VectorXd& t, const VectorXd& y0, const VectorXd&
   p.estimates = c0;
   p.variances = s2 * (a.transpose() * a).inverse().diagonal();
   return p;
+}
+
+// A channel the model reproduces exactly (RSS 0, ln 0 = −∞) or whose RSS is not finite has no
+// likelihood to compare: NaN, not −∞ (whose differences would be NaN or ±∞ at random).
+TEST(InformationCriteria, ANonPositiveOrNonFiniteRssIsNaN) {
+  for (double bad : {0.0, -1.0, std::numeric_limits<double>::infinity(),
+                     std::numeric_limits<double>::quiet_NaN()}) {
+    const std::vector<ChannelResiduals> channels{{1e-9, 100}, {bad, 100}};
+    EXPECT_TRUE(std::isnan(gaussian_deviance(channels))) << bad;
+    EXPECT_TRUE(std::isnan(bic(channels, 3))) << bad;
+  }
+  const std::vector<ChannelResiduals> unmeasured{{1e-9, 100}, {0.0, 0}};
+  EXPECT_TRUE(std::isfinite(bic(unmeasured, 3)));
 }
 
 TEST(InformationCriteria, BicChoosesTheTrueOrderAndRarelyAnExtraTerm) {
