@@ -19,13 +19,11 @@ using namespace scp::refine;
 
 // The paper's experiment with the N1 sensor noise of PAPER-NOTES (1e-7 m, 1e-3 °C), 300 s.
 const std::vector<WindowSample>& window() {
-  static const auto w = test::paper_record(300.0, {.x = 1e-7, .tbar = 1e-3, .seed = 7});
-  return w;
+  return test::cached_paper_record_n1(300.0, 7);
 }
 
 const Vector6& truth() {
-  static const Vector6 t = test::theta_of(test::paper_actuator());
-  return t;
+  return test::paper_theta();
 }
 
 // The start the daemon hands over under noise: the paper law's estimate, θ1..θ4 biased by ~0.17.
@@ -55,7 +53,7 @@ BENCHMARK(BM_Fit300s)->Unit(benchmark::kMillisecond)->Iterations(3);
 // actuator, as the daemon would hand it over.
 const std::vector<WindowSample>& light_stiff_window() {
   static const auto w = test::record(test::light_stiff(), 300.0, 1e-3, test::light_stiff_voltage(),
-                                     {.x = 1e-7, .tbar = 1e-3, .seed = 7});
+                                     test::seeded(test::kN1, 7));
   return w;
 }
 
@@ -146,7 +144,7 @@ struct JointFunctor {
 // both solve the same well-started joint problem; compare with BM_Fit300s's joint stage.
 void BM_EigenLevenbergMarquardt(benchmark::State& state) {
   const auto& w = window();
-  JointFunctor f{&w, 1e-7, 1e-3};
+  JointFunctor f{&w, test::kN1.x, test::kN1.tbar};
   Eigen::LevenbergMarquardt<JointFunctor> lm(f);
   int nfev = 0, njev = 0;
   double err = 0.0;

@@ -16,14 +16,13 @@ namespace {
 
 using namespace scp::refine;
 
+// The paper's experiment with N1 noise, 300 s.
 const std::vector<WindowSample>& window() {
-  static const auto w = test::paper_record(300.0, {.x = 1e-7, .tbar = 1e-3, .seed = 7});
-  return w;
+  return test::cached_paper_record_n1(300.0, 7);
 }
 
 const Vector6& truth() {
-  static const Vector6 t = test::theta_of(test::paper_actuator());
-  return t;
+  return test::paper_theta();
 }
 
 const std::vector<ModelState>& model() {
@@ -39,7 +38,7 @@ ValidationSettings settings() {
   ValidationSettings s;
   s.mechanical_time_constant_s = 0.7;
   s.thermal_time_constant_s = 17.0;
-  s.declared_noise = Vector2(1e-7, 1e-3);
+  s.declared_noise = Vector2(test::kN1.x, test::kN1.tbar);
   s.jacobian_columns = kParams;
   return s;
 }

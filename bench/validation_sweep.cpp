@@ -215,7 +215,8 @@ int main(int argc, char** argv) {
                  argv[0]);
     return 2;
   }
-  const std::vector<NoiseLevel> levels{{"n1", 1e-7, 1e-3}, {"n3", 1e-6, 0.1}};
+  const std::vector<NoiseLevel> levels{{"n1", test::kN1.x, test::kN1.tbar},
+                                       {"n3", test::kN3.x, test::kN3.tbar}};
   std::printf("validation sweep: %.0f s windows at 1 kHz after %.0f s, seeds %d..%d\n", o.seconds,
               o.warmup, o.first_seed, o.first_seed + o.seeds - 1);
   for (const Cell& cell : all_cells()) {

@@ -57,6 +57,15 @@ struct Noise {
   unsigned seed = 1;
 };
 
+// The sensors' white noise at PAPER-NOTES' levels N1 (1e-7 m, 1e-3 °C) and N3 (1e-6 m, 0.1 °C).
+inline constexpr Noise kN1{.x = 1e-7, .tbar = 1e-3};
+inline constexpr Noise kN3{.x = 1e-6, .tbar = 0.1};
+// `noise` drawn from `seed`.
+constexpr Noise seeded(Noise noise, unsigned seed) {
+  noise.seed = seed;
+  return noise;
+}
+
 // `seconds` of the plant at period `dt`, voltage from `voltage(t)` written at each sample and held
 // until the next: window sample k+1 carries the voltage set at sample k (voltage_since = t_k).
 inline std::vector<WindowSample> record(const drivers::sim::PlantParams& params, double seconds,
@@ -203,6 +212,27 @@ inline const std::vector<WindowSample>& cached_paper_record(double seconds) {
     if (s == seconds) return w;
   cache.emplace_back(seconds, paper_record(seconds));
   return cache.back().second;
+}
+
+// θ of the paper's actuator (Table I).
+inline const Vector6& paper_theta() {
+  static const Vector6 t = test::theta_of(paper_actuator());
+  return t;
+}
+
+// The paper record of `seconds` with N1 noise drawn from `seed`, simulated once per program (the
+// benches' window).
+inline const std::vector<WindowSample>& cached_paper_record_n1(double seconds, unsigned seed) {
+  struct Entry {
+    double seconds;
+    unsigned seed;
+    std::vector<WindowSample> window;
+  };
+  static std::vector<Entry> cache;
+  for (const Entry& e : cache)
+    if (e.seconds == seconds && e.seed == seed) return e.window;
+  cache.push_back({seconds, seed, paper_record(seconds, seeded(kN1, seed))});
+  return cache.back().window;
 }
 
 }  // namespace scp::refine::test

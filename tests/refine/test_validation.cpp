@@ -23,10 +23,7 @@ namespace {
 constexpr double kPi = std::numbers::pi;
 constexpr double kSigmaX = 1e-7, kSigmaT = 1e-3;  // N1
 
-const Vector6& paper_theta() {
-  static const Vector6 t = test::theta_of(test::paper_actuator());
-  return t;
-}
+using test::paper_theta;
 
 ValidationSettings n1_settings() {
   ValidationSettings s;

@@ -17,10 +17,9 @@ namespace {
 
 constexpr double kSeconds = 120.0;
 
-struct Noise {
-  double x, tbar;
-};
-constexpr Noise kN1{1e-7, 1e-3}, kN3{1e-6, 0.1};
+using test::kN1;
+using test::kN3;
+using Noise = test::Noise;
 
 // The paper's model: the fit's nuisance terms held at 0, so that a deviation is one the fit does
 // not model.
