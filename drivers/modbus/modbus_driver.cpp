@@ -212,6 +212,12 @@ void ModbusDriver::prepare() {
   gap_ns_ = std::llround(kRtuFrameGapChars * char_time_s(settings_) * 1e9);
   // A cycle's I/O fits its period (check_timing() approved n x response_timeout within it); an
   // offline run has no wall-clock period to fit.
+  // One write of 0 V outside a cycle: the silence before its request, then its reply's wait.
+  safe_budget_ns_ =
+      std::llround(settings_.response_timeout_s * 1e9) +
+      (settings_.transport == Transport::rtu
+           ? rtu_silence_ns(std::llround(char_time_s(settings_) * 1e9), settings_.baud)
+           : 0);
   cycle_budget_ns_ = settings_.enforce_period_budget ? std::llround(period_s_ * 1e9)
                                                      : std::numeric_limits<std::int64_t>::max() / 2;
 }
@@ -559,6 +565,10 @@ void ModbusDriver::safe_state() noexcept {
     if (stats_.output_v != 0.0) stats_.output_confirmed = false;
     return;
   }
+  // Called outside a cycle too (the loop's shutdown, a fault raised late in a cycle), when the
+  // cycle's budget may have run out: an RTU request would then never be sent and a TCP reply
+  // never awaited. 0 V is worth an overrun: a whole transaction's time, from now.
+  link_->limit_until(monotonic_ns() + safe_budget_ns_);
   int err = 0;
   if (write_command(0.0, err)) {
     last_command_ = 0.0;
@@ -584,8 +594,6 @@ void ModbusDriver::close() noexcept {
     sleep_cv_.notify_all();
     reconnector_.join();
   }
-  // Past the loop's cycles: the last 0 V gets a whole response timeout.
-  if (link_ != nullptr) link_->limit_until(std::numeric_limits<std::int64_t>::max());
   if (opened_) safe_state();
   link_.reset();
   delete fresh_.exchange(nullptr);
