@@ -189,7 +189,12 @@ int RtuTransaction::transact(int unit, const std::uint8_t* pdu, int pdu_len, Pdu
   unanswered_ = false;
   const std::int64_t silent_by = std::min(monotonic_ns() + timeout_ns, not_after_ns);
   if (const int err = await_silence(silent_by); err != 0) return err;
-  if (const int err = send_frame(unit, pdu, pdu_len); err != 0) return err;
+  if (const int err = send_frame(unit, pdu, pdu_len); err != 0) {
+    // Part of it may wait in the port (EAGAIN while the tty held output back): flushed before
+    // the next request, or it would go out glued to it.
+    unanswered_ = true;
+    return err;
+  }
   const std::int64_t reply_by = std::min(sent_ns_ + timeout_ns, not_after_ns);
   if (const int err = receive_frame(unit, pdu[0], reply_by); err != 0) {
     unanswered_ = true;
