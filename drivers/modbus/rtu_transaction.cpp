@@ -138,7 +138,8 @@ int RtuTransaction::send_frame(int unit, const std::uint8_t* pdu, int pdu_len) n
 int RtuTransaction::judge_frame(int unit, int function) noexcept {
   if (rx_[0] != unit) return EMBBADSLAVE;
   const int need = expected_frame_length(rx_.data(), rx_len_);
-  if (need < 0) return EMBBADDATA;
+  // A byte count of 252-255 announces a frame longer than RTU allows: it would never complete.
+  if (need < 0 || need > kMaxFrame) return EMBBADDATA;
   if (need == 0 || rx_len_ < need) return 0;
   const std::uint16_t crc = rtu_crc16(rx_.data(), need - 2);
   if (rx_[need - 2] != (crc & 0xFF) || rx_[need - 1] != (crc >> 8)) return EMBBADCRC;

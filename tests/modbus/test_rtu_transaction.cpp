@@ -133,6 +133,11 @@ TEST(RtuTransaction, RequestIsFramedAndTheReplyCheckedByLengthCrcAndUnit) {
   bad_crc.back() ^= 0xFF;
   EXPECT_EQ(answer_with(bad_crc), EMBBADCRC);
   EXPECT_EQ(answer_with(framed({kUnit + 1, 0x03, 2, 0, 7})), EMBBADSLAVE);
+  // A byte count no RTU frame can hold (5 + 252 > 256 bytes) is refused at once, not waited
+  // for until the timeout.
+  const std::int64_t begin = monotonic_ns();
+  EXPECT_EQ(answer_with(framed({kUnit, 0x03, 252, 0, 7})), EMBBADDATA);
+  EXPECT_LT(monotonic_ns() - begin, 400'000'000);
   EXPECT_EQ(answer_with(framed({kUnit, 0x83, 2})), 0);  // an exception is an answer
   std::uint16_t v = 0;
   EXPECT_EQ(check_read_reply(false, 1, m.reply.data(), m.reply_len, &v), MODBUS_ENOBASE + 2);
