@@ -221,10 +221,12 @@ TEST(RtuTransaction, NeverRunsPastItsBudget) {
   EXPECT_GE(took, 19'000'000);
   EXPECT_LT(took, 100'000'000);
   line.request();
-  // A byte on the line just now, and a silence (here 100 ms) that could not end within the
+  // A byte on the line just now, and a silence (here 60 ms) that could then not end within the
   // response timeout (50 ms): no request is sent, and the transaction gives up at once instead of
-  // waiting for the silence.
-  Master quiet_wanted(line, 100'000'000);
+  // waiting for the silence. Without the byte it would have been sent: attach() counts the line
+  // busy from then, and its silence ends 20 ms into the transaction, within the timeout.
+  Master quiet_wanted(line, 60'000'000);
+  usleep(40'000);
   line.send({0x55});
   begin = clock::monotonic_ns();
   EXPECT_EQ(quiet_wanted.read(line, 0.050), EBUSY);
