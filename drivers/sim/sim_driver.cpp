@@ -52,6 +52,8 @@ void validate_bench(const SimSettings& s) {
   require_non_negative(s.noise_current, "sim.noise.current", "use 0 for a noise-free sensor");
 }
 
+}  // namespace
+
 void validate(const SimSettings& s) {
   const PlantParams& p = s.plant;
   require_positive(p.m, "sim.plant.m", "0.1 kg");
@@ -91,9 +93,9 @@ void validate(const SimSettings& s) {
   require_non_negative(s.fault_duration_s, "sim.fault.duration_s", "use 0 for a fault that lasts");
   require(std::isfinite(s.fault_value_c), "sim.fault.value_c", "a finite temperature",
           s.fault_value_c, "e.g. 400 (above the safety limit)");
+  parse_fault(s.fault);
+  parse_step_parameter(s.step_parameter);
 }
-
-}  // namespace
 
 Fault parse_fault(std::string_view name) {
   if (name == "none") return Fault::none;

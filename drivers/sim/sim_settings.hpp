@@ -69,4 +69,8 @@ struct SimSettings {
   double fault_value_c = 400.0;  // °C reported by temperature_out_of_range
 };
 
+// Throws DriverError naming the sim.* key and its allowed range on settings SimDriver cannot
+// run (its constructor calls it; a program that only writes a simulated file does too).
+void validate(const SimSettings& settings);
+
 }  // namespace scp::drivers::sim
