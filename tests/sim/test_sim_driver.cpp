@@ -175,19 +175,19 @@ TEST(SimDriver, ValidationNamesTheField) {
 
 TEST(SimDriver, StepMultipliesTheNamedParameterOnceAtItsTime) {
   SimSettings s;
-  s.step_parameter = "k";
+  s.step_parameter = "lambda";
   s.step_at_s = 0.5;
   s.step_factor = 1.1;
   SimDriver d(s);
   d.open();
   Sample out;
   ASSERT_EQ(d.read(at(400), out).status, IoStatus::ok);
-  EXPECT_EQ(d.plant().nominal_params().k, s.plant.k);
+  EXPECT_EQ(d.plant().nominal_params().lambda, s.plant.lambda);
   ASSERT_EQ(d.read(at(600), out).status, IoStatus::ok);
-  EXPECT_DOUBLE_EQ(d.plant().nominal_params().k, s.plant.k * 1.1);
+  EXPECT_DOUBLE_EQ(d.plant().nominal_params().lambda, s.plant.lambda * 1.1);
   EXPECT_EQ(d.plant().nominal_params().R, s.plant.R);
   ASSERT_EQ(d.read(at(900), out).status, IoStatus::ok);
-  EXPECT_DOUBLE_EQ(d.plant().nominal_params().k, s.plant.k * 1.1);  // once
+  EXPECT_DOUBLE_EQ(d.plant().nominal_params().lambda, s.plant.lambda * 1.1);  // once
 }
 
 // Runs 3 s at 3 V with the fault in [1, 1.5) s; returns each read's status and sample.
