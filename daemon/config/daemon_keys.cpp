@@ -99,8 +99,7 @@ void declare_sim(Binder& sim, drivers::sim::SimSettings& out) {
   drift.number("alpha1", d.alpha1, 0.0, -10.0, 10.0, "of α1, per hour");
   drift.number("alpha2", d.alpha2, 0.0, -10.0, 10.0, "of α2, per hour");
   Binder step = sim.section("step", "a step of one physical parameter, for tests of health");
-  step.choice("parameter", out.step_parameter, "none",
-              {"none", "m", "R", "Cth", "lambda", "b", "k", "alpha1", "alpha2"},
+  step.choice("parameter", out.step_parameter, "none", drivers::sim::kStepParameterNames,
               "the physical parameter that steps (none = no step)");
   step.number("at_s", out.step_at_s, 0.0, 0.0, kHuge, "loop time of the step");
   step.number("factor", out.step_factor, 1.0, 1e-3, 1e3, "the parameter is multiplied by this");

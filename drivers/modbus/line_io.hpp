@@ -1,7 +1,8 @@
 #pragma once
-// The clock and the wait both transactions (TCP and RTU) bound themselves with: one deadline on
-// CLOCK_MONOTONIC, re-read after every wake-up, so that time lost anywhere (a preemption, a
-// syscall that blocked in the kernel) shortens the next wait instead of adding to the total.
+// The wait both transactions (TCP and RTU) bound themselves with: one deadline on
+// CLOCK_MONOTONIC (common/clock.hpp), re-read after every wake-up, so that time lost anywhere (a
+// preemption, a syscall that blocked in the kernel) shortens the next wait instead of adding to the
+// total.
 
 #include <poll.h>
 #include <sys/socket.h>
@@ -9,23 +10,17 @@
 
 #include <cerrno>
 #include <cstdint>
-#include <ctime>
+
+#include "common/clock.hpp"
 
 namespace scp::drivers::modbus {
-
-inline std::int64_t monotonic_ns() noexcept {
-  timespec ts{};
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-}
 
 // Waits until `fd` is readable or `deadline_ns` passes: 1 readable, 0 deadline, −errno.
 inline int wait_readable(int fd, std::int64_t deadline_ns) noexcept {
   for (;;) {
-    const std::int64_t left = deadline_ns - monotonic_ns();
+    const std::int64_t left = deadline_ns - clock::monotonic_ns();
     if (left <= 0) return 0;
-    const timespec ts{static_cast<time_t>(left / 1'000'000'000),
-                      static_cast<long>(left % 1'000'000'000)};
+    const timespec ts = clock::to_timespec(left);
     pollfd p{fd, POLLIN, 0};
     const int rc = ppoll(&p, 1, &ts, nullptr);
     if (rc > 0) return 1;

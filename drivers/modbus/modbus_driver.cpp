@@ -9,7 +9,7 @@
 #include <cstring>
 #include <utility>
 
-#include "drivers/modbus/line_io.hpp"
+#include "common/clock.hpp"
 #include "drivers/modbus/register_codec.hpp"
 #include "drivers/modbus/timing.hpp"
 #include "drivers/modbus/wire_time.hpp"
@@ -212,6 +212,12 @@ void ModbusDriver::prepare() {
   gap_ns_ = std::llround(kRtuFrameGapChars * char_time_s(settings_) * 1e9);
   // A cycle's I/O fits its period (check_timing() approved n x response_timeout within it); an
   // offline run has no wall-clock period to fit.
+  // One write of 0 V outside a cycle: the silence before its request, then its reply's wait.
+  safe_budget_ns_ =
+      std::llround(settings_.response_timeout_s * 1e9) +
+      (settings_.transport == Transport::rtu
+           ? rtu_silence_ns(std::llround(char_time_s(settings_) * 1e9), settings_.baud)
+           : 0);
   cycle_budget_ns_ = settings_.enforce_period_budget ? std::llround(period_s_ * 1e9)
                                                      : std::numeric_limits<std::int64_t>::max() / 2;
 }
@@ -397,10 +403,10 @@ IoResult ModbusDriver::read(const CycleTime& now, Sample& out) noexcept {
   // timeout, a slow one leaves the others less, and together they never take longer than a
   // period. Counted from now, not from the deadline, so that a cycle that woke late still gets
   // its whole share.
-  link_->limit_until(monotonic_ns() + cycle_budget_ns_);
+  link_->limit_until(clock::monotonic_ns() + cycle_budget_ns_);
   std::int64_t sampled_ns = 0;  // midpoint of the transaction that read x
   for (std::size_t i = 0; i < plan_.blocks.size(); ++i) {
-    const std::int64_t called_ns = stamping() ? monotonic_ns() : 0;
+    const std::int64_t called_ns = stamping() ? clock::monotonic_ns() : 0;
     const int err = link_->read_registers(plan_.blocks[i], buffers_[i].data());
     if (stamping()) {
       // Only the x block's successful reads teach the gate the usual read; the others only
@@ -408,7 +414,7 @@ IoResult ModbusDriver::read(const CycleTime& now, Sample& out) noexcept {
       if (i == x_block_ && err == 0) {
         sampled_ns = transaction_stamp(called_ns, read_gate_);
       } else {
-        mark_line_busy(monotonic_ns());
+        mark_line_busy(clock::monotonic_ns());
       }
     }
     stats_.late_replies = late_before_link_ + link_->late_replies();
@@ -460,7 +466,7 @@ bool ModbusDriver::write_command(double volts, int& err) noexcept {
     err = EINVAL;
     return false;
   }
-  const std::int64_t called_ns = stamping() ? monotonic_ns() : 0;
+  const std::int64_t called_ns = stamping() ? clock::monotonic_ns() : 0;
   err = write_command_registers(*link_, regs.data());
   stats_.late_replies = late_before_link_ + link_->late_replies();
   if (err != 0) {
@@ -497,7 +503,7 @@ ModbusDriver::Span ModbusDriver::last_span(std::int64_t called_ns) const noexcep
   const std::int64_t sent = link_->request_sent_ns();
   const std::int64_t received = link_->reply_received_ns();
   const std::int64_t begin_ns = sent > 0 ? sent : called_ns;
-  const std::int64_t end_ns = received >= begin_ns ? received : monotonic_ns();
+  const std::int64_t end_ns = received >= begin_ns ? received : clock::monotonic_ns();
   return {line_begin_ns(begin_ns, end_ns), end_ns};
 }
 
@@ -559,6 +565,10 @@ void ModbusDriver::safe_state() noexcept {
     if (stats_.output_v != 0.0) stats_.output_confirmed = false;
     return;
   }
+  // Called outside a cycle too (the loop's shutdown, a fault raised late in a cycle), when the
+  // cycle's budget may have run out: an RTU request would then never be sent and a TCP reply
+  // never awaited. 0 V is worth an overrun: a whole transaction's time, from now.
+  link_->limit_until(clock::monotonic_ns() + safe_budget_ns_);
   int err = 0;
   if (write_command(0.0, err)) {
     last_command_ = 0.0;
@@ -584,8 +594,6 @@ void ModbusDriver::close() noexcept {
     sleep_cv_.notify_all();
     reconnector_.join();
   }
-  // Past the loop's cycles: the last 0 V gets a whole response timeout.
-  if (link_ != nullptr) link_->limit_until(std::numeric_limits<std::int64_t>::max());
   if (opened_) safe_state();
   link_.reset();
   delete fresh_.exchange(nullptr);

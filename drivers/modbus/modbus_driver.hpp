@@ -142,6 +142,7 @@ class ModbusDriver final : public Driver {
   std::int64_t line_free_ns_ = 0;
   std::int64_t gap_ns_ = 0;
   std::int64_t cycle_budget_ns_ = 0;  // what a cycle's transactions share: the loop period
+  std::int64_t safe_budget_ns_ = 0;   // what safe_state()'s 0 V gets, whenever it is called
   // The last transaction's bounds on the line: from when its request left (the link's clock,
   // or `called_ns` if it never did) to when its reply arrived (the link's, or now), the begin
   // moved to when a gateway's line could carry it.

@@ -7,7 +7,7 @@
 #include <cmath>
 #include <cstring>
 
-#include "drivers/modbus/line_io.hpp"
+#include "common/clock.hpp"
 #include "drivers/modbus/wire_time.hpp"
 
 namespace scp::drivers::modbus {
@@ -127,7 +127,7 @@ std::int64_t ModbusLink::reply_received_ns() const noexcept {
   // The kernel's stamp, if it is plausible: not before the request was sent (bytes buffered
   // earlier), not after now (a clock step).
   const std::int64_t received = tcp_.reply_received_ns();
-  return received > tcp_.request_sent_ns() && received <= monotonic_ns() ? received : 0;
+  return received > tcp_.request_sent_ns() && received <= clock::monotonic_ns() ? received : 0;
 }
 
 std::uint64_t ModbusLink::late_replies() const noexcept {

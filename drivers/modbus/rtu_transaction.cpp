@@ -67,16 +67,15 @@ bool RtuTransaction::attach(int fd) noexcept {
   // Whatever the port held before is discarded, and a reply to the previous connection's last
   // request may still be on its way: the first request, too, waits for the line's silence.
   unread_ = true;
-  line_busy_until_ns_ = monotonic_ns();
+  line_busy_until_ns_ = clock::monotonic_ns();
   return true;
 }
 
 int RtuTransaction::wait_bytes(std::int64_t deadline_ns) noexcept {
   if (unread_) return 1;
   for (;;) {
-    const std::int64_t left = std::max<std::int64_t>(0, deadline_ns - monotonic_ns());
-    const timespec ts{static_cast<time_t>(left / 1'000'000'000),
-                      static_cast<long>(left % 1'000'000'000)};
+    const std::int64_t left = std::max<std::int64_t>(0, deadline_ns - clock::monotonic_ns());
+    const timespec ts = clock::to_timespec(left);
     epoll_event ev{};
     const int rc = epoll_pwait2(epoll_fd_, &ev, 1, &ts, nullptr);
     if (rc > 0) {
@@ -105,7 +104,7 @@ int RtuTransaction::await_silence(std::int64_t deadline_ns) noexcept {
     const std::int64_t quiet_at = line_busy_until_ns_ + silence_ns_;
     if (quiet_at > deadline_ns) return EBUSY;
     // Up to the silence's end; at once, without waiting, when it has passed already.
-    const int ready = wait_bytes(std::max(quiet_at, monotonic_ns()));
+    const int ready = wait_bytes(std::max(quiet_at, clock::monotonic_ns()));
     if (ready < 0) return -ready;
     if (ready == 0) break;
     const int n = read_bytes(stale.data(), stale.size());
@@ -113,7 +112,7 @@ int RtuTransaction::await_silence(std::int64_t deadline_ns) noexcept {
     if (n > 0) {
       // Bytes seen only now may have come earlier: the line counts as busy until now.
       discarded = true;
-      line_busy_until_ns_ = monotonic_ns();
+      line_busy_until_ns_ = clock::monotonic_ns();
     }
   }
   if (discarded) ++late_;
@@ -128,7 +127,7 @@ int RtuTransaction::send_frame(int unit, const std::uint8_t* pdu, int pdu_len) n
   frame[pdu_len + 1] = static_cast<std::uint8_t>(crc & 0xFF);
   frame[pdu_len + 2] = static_cast<std::uint8_t>(crc >> 8);
   const int total = pdu_len + 3;
-  sent_ns_ = monotonic_ns();
+  sent_ns_ = clock::monotonic_ns();
   if (const int err = send_frame_bytes(fd_, frame.data(), total, false); err != 0) return err;
   // The port sends the frame from now on: the line carries it for total characters.
   line_busy_until_ns_ = sent_ns_ + total * char_ns_;
@@ -138,7 +137,8 @@ int RtuTransaction::send_frame(int unit, const std::uint8_t* pdu, int pdu_len) n
 int RtuTransaction::judge_frame(int unit, int function) noexcept {
   if (rx_[0] != unit) return EMBBADSLAVE;
   const int need = expected_frame_length(rx_.data(), rx_len_);
-  if (need < 0) return EMBBADDATA;
+  // A byte count of 252-255 announces a frame longer than RTU allows: it would never complete.
+  if (need < 0 || need > kMaxFrame) return EMBBADDATA;
   if (need == 0 || rx_len_ < need) return 0;
   const std::uint16_t crc = rtu_crc16(rx_.data(), need - 2);
   if (rx_[need - 2] != (crc & 0xFF) || rx_[need - 1] != (crc >> 8)) return EMBBADCRC;
@@ -164,7 +164,7 @@ int RtuTransaction::receive_frame(int unit, int function, std::int64_t deadline_
     if (n < 0) return -n;
     if (n == 0) continue;
     rx_len_ += n;
-    const std::int64_t now = monotonic_ns();
+    const std::int64_t now = clock::monotonic_ns();
     line_busy_until_ns_ = std::max(line_busy_until_ns_, now);
     // Frames that are not the answer are refused at once; the rest of such a frame is discarded
     // while the silence before the next request is awaited.
@@ -187,9 +187,14 @@ int RtuTransaction::transact(int unit, const std::uint8_t* pdu, int pdu_len, Pdu
   // What the port has not sent of an unanswered request would be answered into this one's wait.
   if (unanswered_) tcflush(fd_, TCOFLUSH);
   unanswered_ = false;
-  const std::int64_t silent_by = std::min(monotonic_ns() + timeout_ns, not_after_ns);
+  const std::int64_t silent_by = std::min(clock::monotonic_ns() + timeout_ns, not_after_ns);
   if (const int err = await_silence(silent_by); err != 0) return err;
-  if (const int err = send_frame(unit, pdu, pdu_len); err != 0) return err;
+  if (const int err = send_frame(unit, pdu, pdu_len); err != 0) {
+    // Part of it may wait in the port (EAGAIN while the tty held output back): flushed before
+    // the next request, or it would go out glued to it.
+    unanswered_ = true;
+    return err;
+  }
   const std::int64_t reply_by = std::min(sent_ns_ + timeout_ns, not_after_ns);
   if (const int err = receive_frame(unit, pdu[0], reply_by); err != 0) {
     unanswered_ = true;

@@ -24,11 +24,8 @@ std::int64_t realtime_to_monotonic_ns(const timespec& real) noexcept {
   clock_gettime(CLOCK_MONOTONIC, &m0);
   clock_gettime(CLOCK_REALTIME, &r);
   clock_gettime(CLOCK_MONOTONIC, &m1);
-  const auto ns = [](const timespec& t) {
-    return static_cast<std::int64_t>(t.tv_sec) * 1'000'000'000 + t.tv_nsec;
-  };
-  const std::int64_t mono_now = ns(m0) + (ns(m1) - ns(m0)) / 2;
-  return ns(real) - ns(r) + mono_now;
+  const std::int64_t mono_now = clock::to_ns(m0) + (clock::to_ns(m1) - clock::to_ns(m0)) / 2;
+  return clock::to_ns(real) - clock::to_ns(r) + mono_now;
 }
 
 }  // namespace
@@ -65,7 +62,7 @@ int TcpTransaction::send_frame(int fd, int unit, std::uint16_t tid, const std::u
   frame[6] = static_cast<std::uint8_t>(unit);
   std::memcpy(frame.data() + kHeader, pdu, static_cast<std::size_t>(pdu_len));
   const int total = kHeader + pdu_len;
-  sent_ns_ = monotonic_ns();
+  sent_ns_ = clock::monotonic_ns();
   return send_frame_bytes(fd, frame.data(), total, true);
 }
 

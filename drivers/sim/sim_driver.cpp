@@ -52,6 +52,8 @@ void validate_bench(const SimSettings& s) {
   require_non_negative(s.noise_current, "sim.noise.current", "use 0 for a noise-free sensor");
 }
 
+}  // namespace
+
 void validate(const SimSettings& s) {
   const PlantParams& p = s.plant;
   require_positive(p.m, "sim.plant.m", "0.1 kg");
@@ -91,9 +93,9 @@ void validate(const SimSettings& s) {
   require_non_negative(s.fault_duration_s, "sim.fault.duration_s", "use 0 for a fault that lasts");
   require(std::isfinite(s.fault_value_c), "sim.fault.value_c", "a finite temperature",
           s.fault_value_c, "e.g. 400 (above the safety limit)");
+  parse_fault(s.fault);
+  parse_step_parameter(s.step_parameter);
 }
-
-}  // namespace
 
 Fault parse_fault(std::string_view name) {
   if (name == "none") return Fault::none;
@@ -110,9 +112,19 @@ Fault parse_fault(std::string_view name) {
                     "stuck_sensor, temperature_out_of_range, read_error, no_data, stall");
 }
 
+double PlantParams::*parse_step_parameter(std::string_view name) {
+  if (const auto field = value_of(kStepParameters, name)) return *field;
+  std::string names;
+  for (const auto& entry : kStepParameters)
+    names += (names.empty() ? "" : ", ") + std::string(entry.name);
+  throw DriverError("sim.step.parameter: unknown parameter '" + std::string(name) +
+                    "'; use one of " + names);
+}
+
 SimDriver::SimDriver(const SimSettings& settings)
     : settings_((validate(settings), settings)),
       fault_(parse_fault(settings.fault)),
+      step_field_(parse_step_parameter(settings.step_parameter)),
       plant_(settings.plant, settings.substeps, settings.drift, settings.deviations),
       sensors_(settings) {}
 
@@ -129,22 +141,10 @@ bool SimDriver::fault_active(double t) const noexcept {
 
 void SimDriver::advance_plant(double t) noexcept {
   const SimSettings& s = settings_;
-  if (!step_done_ && s.step_parameter != "none" && t >= s.step_at_s) {
+  if (!step_done_ && step_field_ != nullptr && t >= s.step_at_s) {
     if (s.step_at_s > plant_.time()) plant_.step(command_, s.step_at_s - plant_.time());
     PlantParams p = plant_.nominal_params();
-    constexpr std::array<std::pair<const char*, double PlantParams::*>, 8> kFields{{
-        {"m", &PlantParams::m},
-        {"R", &PlantParams::R},
-        {"Cth", &PlantParams::Cth},
-        {"lambda", &PlantParams::lambda},
-        {"b", &PlantParams::b},
-        {"k", &PlantParams::k},
-        {"alpha1", &PlantParams::alpha1},
-        {"alpha2", &PlantParams::alpha2},
-    }};
-    for (const auto& [name, field] : kFields) {
-      if (s.step_parameter == name) p.*field *= s.step_factor;
-    }
+    p.*step_field_ *= s.step_factor;
     plant_.set_params(p);
     step_done_ = true;
   }

@@ -31,6 +31,9 @@ enum class Fault : std::uint8_t {
 
 // Parses a SimSettings::fault name; throws DriverError listing the allowed names.
 Fault parse_fault(std::string_view name);
+// The member of PlantParams a SimSettings::step_parameter name steps (nullptr for "none");
+// throws DriverError naming sim.step.parameter and listing the allowed names.
+double PlantParams::*parse_step_parameter(std::string_view name);
 
 class SimDriver final : public Driver {
  public:
@@ -68,6 +71,7 @@ class SimDriver final : public Driver {
 
   SimSettings settings_;
   Fault fault_;
+  double PlantParams::*step_field_;  // SimSettings::step_parameter; nullptr: no step
   Plant plant_;
   Sensors sensors_;
   double command_ = 0.0;  // V held from the last read onward

@@ -2,12 +2,36 @@
 // Settings of the simulated actuator. Plain data: the daemon's config module declares the YAML
 // keys and fills this struct; SimDriver's constructor validates it.
 
+#include <array>
+#include <cstddef>
 #include <cstdint>
 #include <string>
+#include <string_view>
 
+#include "common/names.hpp"
 #include "drivers/sim/plant_params.hpp"
 
 namespace scp::drivers::sim {
+
+// The names SimSettings::step_parameter (sim.step.parameter) takes, each with the member of
+// PlantParams it steps (nullptr: none, no step).
+inline constexpr NameTable<double PlantParams::*, 9> kStepParameters{{
+    {nullptr, "none"},
+    {&PlantParams::m, "m"},
+    {&PlantParams::R, "R"},
+    {&PlantParams::Cth, "Cth"},
+    {&PlantParams::lambda, "lambda"},
+    {&PlantParams::b, "b"},
+    {&PlantParams::k, "k"},
+    {&PlantParams::alpha1, "alpha1"},
+    {&PlantParams::alpha2, "alpha2"},
+}};
+// The same names alone, for the configuration's choice list.
+inline constexpr auto kStepParameterNames = [] {
+  std::array<std::string_view, kStepParameters.size()> names{};
+  for (std::size_t i = 0; i < names.size(); ++i) names[i] = kStepParameters[i].name;
+  return names;
+}();
 
 struct SimSettings {
   PlantParams plant;
@@ -31,8 +55,7 @@ struct SimSettings {
   bool measure_current = false;
   double noise_current = 0;
   // A step of one physical parameter (for tests of the health monitor): at loop time at_s the
-  // nominal `parameter` (m, R, Cth, lambda, b, k, alpha1, alpha2; "none" = no step) is
-  // multiplied by `factor`.
+  // nominal `parameter` (a name of kStepParameters; "none" = no step) is multiplied by `factor`.
   std::string step_parameter = "none";
   double step_at_s = 0.0;
   double step_factor = 1.0;
@@ -45,5 +68,9 @@ struct SimSettings {
   double fault_start_s = 0, fault_duration_s = 0;
   double fault_value_c = 400.0;  // °C reported by temperature_out_of_range
 };
+
+// Throws DriverError naming the sim.* key and its allowed range on settings SimDriver cannot
+// run (its constructor calls it; a program that only writes a simulated file does too).
+void validate(const SimSettings& settings);
 
 }  // namespace scp::drivers::sim

@@ -1,24 +1,17 @@
 // The scp-benchsim program: its help, a file the replay reader takes, its errors.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
 #include <cstdio>
 #include <filesystem>
 #include <string>
 
 #include "drivers/replay/csv_trace.hpp"
+#include "tests/support/run_command.hpp"
 
 namespace {
 
 std::string run(const std::string& args, int& status) {
-  const std::string cmd = std::string(SCP_BENCHSIM_BINARY) + " " + args + " 2>&1";
-  FILE* pipe = ::popen(cmd.c_str(), "r");
-  std::string out;
-  char buf[4096];
-  while (pipe && std::fgets(buf, sizeof buf, pipe)) out += buf;
-  status = pipe ? ::pclose(pipe) : -1;
-  status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return out;
+  return scp::test::run_command(std::string(SCP_BENCHSIM_BINARY) + " " + args, status);
 }
 
 std::string temp_path(const std::string& name) {

@@ -2,7 +2,6 @@
 // an independent finite-difference check of refine::cramer_rao_bound(), and scp-crb's output.
 
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -19,6 +18,7 @@
 #include "daemon/config/binder.hpp"
 #include "daemon/config/daemon_config.hpp"
 #include "tests/crb/fd_fisher.hpp"
+#include "tests/support/run_command.hpp"
 #include "tools/crb/crb_report.hpp"
 #include "tools/crb/experiment.hpp"
 
@@ -146,14 +146,7 @@ TEST(CramerRao, AgreesWithFiniteDifferencesOfTheSimulatedPlant) {
 }
 
 std::string run(const std::string& args, int& status) {
-  const std::string cmd = std::string(SCP_CRB_BINARY) + " " + args + " 2>&1";
-  FILE* pipe = ::popen(cmd.c_str(), "r");
-  std::string out;
-  char buf[4096];
-  while (pipe && std::fgets(buf, sizeof buf, pipe)) out += buf;
-  status = pipe ? ::pclose(pipe) : -1;
-  status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return out;
+  return scp::test::run_command(std::string(SCP_CRB_BINARY) + " " + args, status);
 }
 
 // The paper's voltage and the thermal equation, written out here rather than taken from

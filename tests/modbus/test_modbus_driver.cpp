@@ -191,6 +191,29 @@ TEST_F(ModbusDriverTest, SafeStateWritesZeroToTheCommandRegister) {
   EXPECT_EQ(regs[0], 0);
 }
 
+// safe_state() outside a cycle (the loop's shutdown, a fault raised late in a cycle) comes when
+// the cycle's I/O budget has run out: its 0 V still gets a whole transaction, reply included.
+TEST_F(ModbusDriverTest, SafeStateAfterTheCycleBudgetRanOutStillDeliversZeroVolts) {
+  int port = 0;
+  auto daq = test::start_simdaq(config_, port);
+  ModbusDriver driver(settings_for(port), kPeriod);
+  driver.open();
+  Sample s;
+  ASSERT_EQ(driver.read({0.0, kPeriod}, s).status, IoStatus::ok);  // the budget: one period
+  ASSERT_EQ(driver.write_voltage(2.0).status, IoStatus::ok);
+  std::this_thread::sleep_for(std::chrono::duration<double>(kPeriod + 0.02));
+  const std::uint64_t errors = driver.stats().write_errors;
+  driver.safe_state();
+  EXPECT_EQ(driver.stats().write_errors, errors);
+  EXPECT_TRUE(driver.stats().output_confirmed) << "the reply to 0 V was not awaited";
+  EXPECT_EQ(driver.stats().output_v, 0.0);
+  std::array<std::uint16_t, 2> regs{9, 9};
+  ASSERT_TRUE(test::read_holding(port, 0, 2, regs.data()));
+  EXPECT_EQ(regs[0], 0);
+  EXPECT_EQ(regs[1], 0);
+  driver.close();
+}
+
 // A DAQ absent at start is a link lost before it was ever up (issue 9): open() returns, reads
 // report why, the output is not confirmed, and the reconnect thread keeps trying. An offline
 // run has nobody to wait for and still refuses at once. Impossible timing is always refused.

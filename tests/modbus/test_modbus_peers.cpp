@@ -4,9 +4,11 @@
 
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <regex>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "drivers/modbus/modbus_driver.hpp"
 #include "io_helpers.hpp"
@@ -98,34 +100,52 @@ TEST(ModbusPeers, MbpollReadsSimdaqRegistersAsDocumented) {
   std::remove(config.c_str());
 }
 
-TEST(ModbusPeers, RtuOverASocatPtyPair) {
-  const std::string socat = "/usr/bin/socat";
-  if (!test::executable(socat)) SCP_PEER_MISSING("socat is not installed (apt install socat)");
-  ChildProcess link({socat, "-d", "-d", "pty,raw,echo=0", "pty,raw,echo=0"});
-  ASSERT_TRUE(link.wait_for("starting data transfer loop", 10.0)) << link.output();
-  const std::regex re("PTY is (/dev/pts/[0-9]+)");
-  std::vector<std::string> ptys;
-  const std::string out = link.output();
-  for (auto it = std::sregex_iterator(out.begin(), out.end(), re); it != std::sregex_iterator();
-       ++it) {
-    ptys.push_back((*it)[1]);
+// scp-simdaq serving RTU at 115200 Bd on one end of a socat pty pair; `device` is the other end.
+class RtuPtyPair : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const std::string socat = "/usr/bin/socat";
+    if (!test::executable(socat)) SCP_PEER_MISSING("socat is not installed (apt install socat)");
+    link_ = std::make_unique<ChildProcess>(
+        std::vector<std::string>{socat, "-d", "-d", "pty,raw,echo=0", "pty,raw,echo=0"});
+    ASSERT_TRUE(link_->wait_for("starting data transfer loop", 10.0)) << link_->output();
+    const std::regex re("PTY is (/dev/pts/[0-9]+)");
+    std::vector<std::string> ptys;
+    const std::string out = link_->output();
+    for (auto it = std::sregex_iterator(out.begin(), out.end(), re); it != std::sregex_iterator();
+         ++it) {
+      ptys.push_back((*it)[1]);
+    }
+    ASSERT_EQ(ptys.size(), 2u) << out;
+    std::string yaml = test::kSimdaqConfig;
+    yaml.replace(yaml.find("transport: tcp"), 14, "transport: rtu\n    rtu: {baud: 115200}");
+    config_ = test::temp_file(yaml);
+    daq_ = std::make_unique<ChildProcess>(
+        std::vector<std::string>{SCP_SIMDAQ_PATH, "--config", config_, "--device", ptys[0]});
+    ASSERT_TRUE(daq_->wait_for("scp-simdaq: serving " + ptys[0], 10.0)) << daq_->output();
+    device_ = ptys[1];
   }
-  ASSERT_EQ(ptys.size(), 2u) << out;
+  void TearDown() override {
+    if (!config_.empty()) std::remove(config_.c_str());
+  }
+  ModbusSettings settings() const {
+    ModbusSettings s;
+    s.transport = Transport::rtu;
+    s.device = device_;
+    s.baud = 115200;
+    s.response_timeout_s = 0.1;
+    s.xdot.present = true;
+    s.voltage.present = true;
+    return s;
+  }
+  std::unique_ptr<ChildProcess> link_;
+  std::unique_ptr<ChildProcess> daq_;
+  std::string config_;
+  std::string device_;
+};
 
-  std::string yaml = test::kSimdaqConfig;
-  yaml.replace(yaml.find("transport: tcp"), 14, "transport: rtu\n    rtu: {baud: 115200}");
-  const std::string config = test::temp_file(yaml);
-  ChildProcess daq({SCP_SIMDAQ_PATH, "--config", config, "--device", ptys[0]});
-  ASSERT_TRUE(daq.wait_for("scp-simdaq: serving " + ptys[0], 10.0)) << daq.output();
-
-  ModbusSettings s;
-  s.transport = Transport::rtu;
-  s.device = ptys[1];
-  s.baud = 115200;
-  s.response_timeout_s = 0.1;
-  s.xdot.present = true;
-  s.voltage.present = true;
-  ModbusDriver driver(s, 0.5);
+TEST_F(RtuPtyPair, RtuOverASocatPtyPair) {
+  ModbusDriver driver(settings(), 0.5);
   driver.open();
   Sample sample;
   ASSERT_EQ(driver.read({0.0, 0.5}, sample).status, IoStatus::ok);
@@ -136,7 +156,33 @@ TEST(ModbusPeers, RtuOverASocatPtyPair) {
   EXPECT_EQ(sample.voltage, 1.0);
   EXPECT_GT(sample.temperature, 25.0);
   driver.close();
-  std::remove(config.c_str());
+}
+
+// safe_state() outside a cycle, after the cycle's I/O budget ran out (the loop's shutdown, a fault
+// raised late in a cycle): the silence before its request and the reply still get their time, so
+// 0 V goes out (with an expired budget the request was never sent: EBUSY at once).
+TEST_F(RtuPtyPair, SafeStateAfterTheCycleBudgetRanOutStillDeliversZeroVolts) {
+  ModbusSettings s = settings();
+  s.response_timeout_s = 0.02;
+  const double period = 0.05;
+  ModbusDriver driver(s, period);
+  driver.open();
+  Sample sample;
+  ASSERT_EQ(driver.read({0.0, period}, sample).status, IoStatus::ok);
+  ASSERT_EQ(driver.write_voltage(1.0).status, IoStatus::ok);
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  ASSERT_EQ(driver.read({period, period}, sample).status, IoStatus::ok);  // a fresh budget
+  EXPECT_EQ(sample.voltage, 1.0);
+  std::this_thread::sleep_for(std::chrono::duration<double>(period + 0.02));
+  const std::uint64_t errors = driver.stats().write_errors;
+  driver.safe_state();
+  EXPECT_EQ(driver.stats().write_errors, errors);
+  EXPECT_TRUE(driver.stats().output_confirmed);
+  EXPECT_EQ(driver.stats().output_v, 0.0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  ASSERT_EQ(driver.read({3 * period, period}, sample).status, IoStatus::ok);
+  EXPECT_EQ(sample.voltage, 0.0) << "0 V never reached the DAQ";
+  driver.close();
 }
 
 }  // namespace

@@ -15,7 +15,7 @@
 #include <thread>
 #include <vector>
 
-#include "drivers/modbus/line_io.hpp"
+#include "common/clock.hpp"
 #include "drivers/modbus/pdu.hpp"
 #include "drivers/modbus/rtu_transaction.hpp"
 
@@ -45,7 +45,7 @@ struct Line {
   std::vector<std::uint8_t> request(std::int64_t* arrived_ns = nullptr) const {
     pollfd p{slave, POLLIN, 0};
     if (poll(&p, 1, 1000) != 1) return {};
-    if (arrived_ns != nullptr) *arrived_ns = monotonic_ns();
+    if (arrived_ns != nullptr) *arrived_ns = clock::monotonic_ns();
     std::array<std::uint8_t, 256> buf{};
     const ssize_t n = ::read(slave, buf.data(), buf.size());
     return {buf.begin(), buf.begin() + (n > 0 ? n : 0)};
@@ -133,6 +133,11 @@ TEST(RtuTransaction, RequestIsFramedAndTheReplyCheckedByLengthCrcAndUnit) {
   bad_crc.back() ^= 0xFF;
   EXPECT_EQ(answer_with(bad_crc), EMBBADCRC);
   EXPECT_EQ(answer_with(framed({kUnit + 1, 0x03, 2, 0, 7})), EMBBADSLAVE);
+  // A byte count no RTU frame can hold (5 + 252 > 256 bytes) is refused at once, not waited
+  // for until the timeout.
+  const std::int64_t begin = clock::monotonic_ns();
+  EXPECT_EQ(answer_with(framed({kUnit, 0x03, 252, 0, 7})), EMBBADDATA);
+  EXPECT_LT(clock::monotonic_ns() - begin, 400'000'000);
   EXPECT_EQ(answer_with(framed({kUnit, 0x83, 2})), 0);  // an exception is an answer
   std::uint16_t v = 0;
   EXPECT_EQ(check_read_reply(false, 1, m.reply.data(), m.reply_len, &v), MODBUS_ENOBASE + 2);
@@ -145,7 +150,7 @@ TEST(RtuTransaction, EveryRequestWaitsForTheInterFrameSilence) {
   std::thread slave([&] {
     line.request();
     line.send(read_reply(1));
-    reply_sent = monotonic_ns();
+    reply_sent = clock::monotonic_ns();
     line.request(&next_arrived);
     line.send(framed({kUnit, 0x06, 0x04, 0x4C, 0x00, 0x05}));
   });
@@ -175,7 +180,7 @@ TEST(RtuTransaction, RestOfALateReplyIsDrainedBeforeTheNextRequest) {
     line.send({late.begin(), late.begin() + 4});
     usleep(200'000);
     line.send({late.begin() + 4, late.end()});
-    rest_sent = monotonic_ns();
+    rest_sent = clock::monotonic_ns();
     line.request(&write_arrived);
     line.send(framed({kUnit, 0x06, 0x04, 0x4C, 0x00, 0x05}));
   });
@@ -210,20 +215,22 @@ TEST(RtuTransaction, NeverRunsPastItsBudget) {
   Line line;
   Master m(line);
   // Nobody answers: the budget ends the wait before the response timeout would.
-  std::int64_t begin = monotonic_ns();
+  std::int64_t begin = clock::monotonic_ns();
   EXPECT_EQ(m.read(line, 0.5, begin + 20'000'000), ETIMEDOUT);
-  std::int64_t took = monotonic_ns() - begin;
+  std::int64_t took = clock::monotonic_ns() - begin;
   EXPECT_GE(took, 19'000'000);
   EXPECT_LT(took, 100'000'000);
   line.request();
-  // A byte on the line just now, and a silence (here 100 ms) that could not end within the
+  // A byte on the line just now, and a silence (here 60 ms) that could then not end within the
   // response timeout (50 ms): no request is sent, and the transaction gives up at once instead of
-  // waiting for the silence.
-  Master quiet_wanted(line, 100'000'000);
+  // waiting for the silence. Without the byte it would have been sent: attach() counts the line
+  // busy from then, and its silence ends 20 ms into the transaction, within the timeout.
+  Master quiet_wanted(line, 60'000'000);
+  usleep(40'000);
   line.send({0x55});
-  begin = monotonic_ns();
+  begin = clock::monotonic_ns();
   EXPECT_EQ(quiet_wanted.read(line, 0.050), EBUSY);
-  took = monotonic_ns() - begin;
+  took = clock::monotonic_ns() - begin;
   EXPECT_LT(took, 50'000'000);
   EXPECT_EQ(quiet_wanted.rtu.request_sent_ns(), 0);
 }

@@ -163,9 +163,31 @@ TEST(SimDriver, ValidationNamesTheField) {
   EXPECT_NE(e.find("sim.fault.kind"), std::string::npos);
   EXPECT_NE(e.find("nan_temperature"), std::string::npos);  // lists the remedy
   s = {};
+  s.step_parameter = "Rth";  // not a parameter: it would never step
+  const std::string step = error_of(s);
+  EXPECT_NE(step.find("sim.step.parameter"), std::string::npos) << step;
+  EXPECT_NE(step.find("alpha2"), std::string::npos) << step;  // lists the remedy
+  s = {};
   s.fault_start_s = -1;
   EXPECT_NE(error_of(s).find("sim.fault.start_s"), std::string::npos);
   EXPECT_EQ(error_of(SimSettings{}), "");
+}
+
+TEST(SimDriver, StepMultipliesTheNamedParameterOnceAtItsTime) {
+  SimSettings s;
+  s.step_parameter = "lambda";
+  s.step_at_s = 0.5;
+  s.step_factor = 1.1;
+  SimDriver d(s);
+  d.open();
+  Sample out;
+  ASSERT_EQ(d.read(at(400), out).status, IoStatus::ok);
+  EXPECT_EQ(d.plant().nominal_params().lambda, s.plant.lambda);
+  ASSERT_EQ(d.read(at(600), out).status, IoStatus::ok);
+  EXPECT_DOUBLE_EQ(d.plant().nominal_params().lambda, s.plant.lambda * 1.1);
+  EXPECT_EQ(d.plant().nominal_params().R, s.plant.R);
+  ASSERT_EQ(d.read(at(900), out).status, IoStatus::ok);
+  EXPECT_DOUBLE_EQ(d.plant().nominal_params().lambda, s.plant.lambda * 1.1);  // once
 }
 
 // Runs 3 s at 3 V with the fault in [1, 1.5) s; returns each read's status and sample.

@@ -47,7 +47,7 @@ long long validate(const BenchFile& f) {
           "the duration must span 1 to 1e9 periods (got " + text(intervals) + ")");
   require(f.sim.fault == "none", "a bench file has no injected fault (sim.fault " + f.sim.fault +
                                      "); use SimDriver for fault tests");
-  const drivers::sim::SimDriver probe(f.sim);  // throws DriverError naming the sim.* key
+  drivers::sim::validate(f.sim);  // throws DriverError naming the sim.* key
   return static_cast<long long>(intervals) + 1;
 }
 
