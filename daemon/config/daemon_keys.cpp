@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <string>
 
@@ -356,31 +357,13 @@ void declare_refine(Binder& refine, RefineSettings& out) {
                 "not converge");
 }
 
-// A nuisance term: `estimate` (the default) or the number it is held at, in [min, max] × `scale`
-// of the key's unit (the fit's unit is the key's times scale).
-std::string short_number(double v) {
-  std::ostringstream out;
-  out << v;
-  return out.str();
-}
-
+// A nuisance term: `estimate` (the default) or the number it is held at, in [min, max] of the
+// key's unit (the fit's unit is the key's times `scale`).
 void nuisance_key(Binder& b, std::string_view key, scp::refine::NuisanceSetting& out, double min,
-                  double max, double scale, const std::string& doc) {
-  std::string text;
-  b.text(key, text, "estimate",
-         "`estimate`, or the number it is held at in [" + short_number(min) + ", " +
-             short_number(max) + "]: " + doc);
-  out = {};
-  if (text == "estimate") return;
-  char* end = nullptr;
-  const double v = std::strtod(text.c_str(), &end);
-  if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(v) || v < min ||
-      v > max) {
-    b.fail(key, "'" + text + "' is neither `estimate` nor a number in [" + short_number(min) +
-                    ", " + short_number(max) + "] (" + doc + ")");
-  }
-  out.fixed = true;
-  out.value = v * scale;
+                  double max, double scale, std::string_view doc) {
+  std::optional<double> held;
+  b.number_or_word(key, held, "estimate", "estimate", min, max, doc);
+  out = {.fixed = held.has_value(), .value = held.value_or(0.0) * scale};
 }
 
 // What the refined fit is told about a real bench (refine/fit_terms.hpp, issue 28).

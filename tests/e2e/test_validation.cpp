@@ -76,6 +76,34 @@ TEST(Validation, UnmodelledResistanceTempcoIsNamedAndNeverRecommended) {
       << s["best_reason"];
 }
 
+// refine.nuisance.x_zero: `estimate` (the default) frees the sensor's zero, which the fit then
+// finds on a bench whose displacement sensor reads 20 µm at rest; a number holds it there. If
+// `estimate` held the term at 0 (as a default-constructed setting does), the first summary would
+// say estimated false; if a held value were dropped, the second would not report it.
+TEST(Validation, NuisanceXZeroIsEstimatedByDefaultAndHeldWhenANumberIsGiven) {
+  TempDir dir;
+  const json bench = noisy_bench(dir, {{"sensor", {{"x_zero_m", 2e-5}}}});
+  const ProcessResult free_run = batch(dir, bench, "estimate.yaml");
+  ASSERT_EQ(free_run.exit_code, 0) << free_run.err << free_run.out;
+  const json s = batch_summary(free_run);
+  ASSERT_TRUE(s.contains("refined")) << s.dump();
+  ASSERT_TRUE(s["refined"].contains("nuisance")) << s["refined"].dump();
+  const json& x_zero = s["refined"]["nuisance"]["x_zero"];
+  EXPECT_TRUE(x_zero["estimated"].get<bool>()) << x_zero.dump();
+  EXPECT_NEAR(x_zero["value"].get<double>(), 2e-5, 1e-6) << x_zero.dump();
+
+  json held_cfg = bench;
+  held_cfg["refine"]["nuisance"] = {{"x_zero", 2e-5}};
+  const ProcessResult held_run = batch(dir, held_cfg, "held.yaml");
+  ASSERT_EQ(held_run.exit_code, 0) << held_run.err << held_run.out;
+  const json h = batch_summary(held_run);
+  ASSERT_TRUE(h.contains("refined")) << h.dump();
+  ASSERT_TRUE(h["refined"].contains("nuisance")) << h["refined"].dump();
+  const json& held = h["refined"]["nuisance"]["x_zero"];
+  EXPECT_FALSE(held["estimated"].get<bool>()) << held.dump();
+  EXPECT_DOUBLE_EQ(held["value"].get<double>(), 2e-5) << held.dump();
+}
+
 // Every new key is range-checked and a mistake names the key.
 TEST(Validation, ConfigErrorsNameTheKey) {
   TempDir dir;
