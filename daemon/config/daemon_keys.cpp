@@ -10,6 +10,7 @@
 #include <optional>
 #include <sstream>
 #include <string>
+#include <tuple>
 
 #include "daemon/config/binder.hpp"
 #include "daemon/config/config_file.hpp"
@@ -366,6 +367,38 @@ void nuisance_key(Binder& b, std::string_view key, scp::refine::NuisanceSetting&
   out = {.fixed = held.has_value(), .value = held.value_or(0.0) * scale};
 }
 
+// The temperature sensor's lag and the extensions ρ, κ, γ: the fit does not estimate them yet
+// (docs/numerics.md), so anything but 0 / `off` is refused rather than silently ignored.
+void declare_unfitted_terms(Binder& nuisance, Binder ext, RefineSettings& out) {
+  const auto refuse = [](const Binder& b, std::string_view key, std::string_view what) {
+    b.fail(key, "not implemented yet: the fit does not estimate " + std::string(what) +
+                    " (docs/numerics.md); only `off` (0)");
+  };
+  std::optional<double> lag;
+  nuisance.number_or_word("sensor_lag", lag, "estimate", "0", 0.0, 100.0,
+                          "first-order lag of the temperature sensor, s (0: none; not fitted "
+                          "yet, only 0)");
+  if (!lag || *lag != 0.0) refuse(nuisance, "sensor_lag", "the temperature sensor's lag");
+  out.nuisance.sensor_lag = {};
+  const std::tuple<const char*, scp::refine::ExtensionMode*, const char*, const char*> exts[] = {
+      {"resistance_tempco", &out.extensions.resistance_tempco,
+       "ρ (the heater's resistance's "
+       "temperature coefficient)",
+       "R = R0·(1 + ρT̄): the heating θ6·V²/(1 + ρT̄)"},
+      {"stiffness_softening", &out.extensions.stiffness_softening,
+       "κ (the stiffness's "
+       "softening with temperature)",
+       "k = k0·(1 − κT̄): a force +θ3·κ·T̄·x"},
+      {"cooling_tempco", &out.extensions.cooling_tempco,
+       "γ (the cooling's temperature "
+       "coefficient)",
+       "λ = λ0·(1 + γT̄): the cooling −θ5·(1 + γT̄)·T̄"}};
+  for (const auto& [key, mode, what, doc] : exts) {
+    ext.choice(key, *mode, scp::refine::ExtensionMode::off, kExtensionModes, doc);
+    if (*mode != scp::refine::ExtensionMode::off) refuse(ext, key, what);
+  }
+}
+
 // What the refined fit is told about a real bench (refine/fit_terms.hpp, issue 28).
 void declare_refine_bench(Binder& refine, RefineSettings& out) {
   refine.choice("voltage_interval", out.voltage_interval_choice, VoltageIntervalChoice::automatic,
@@ -383,18 +416,11 @@ void declare_refine_bench(Binder& refine, RefineSettings& out) {
                "°C the true ambient lies above actuator.ambient_c");
   nuisance_key(nuisance, "ambient_drift", out.nuisance.ambient_drift, -100.0, 100.0, 1.0 / 3600.0,
                "°C per hour the ambient moves over the window");
-  nuisance_key(nuisance, "sensor_lag", out.nuisance.sensor_lag, 0.0, 100.0, 1.0,
-               "first-order lag of the temperature sensor, s (0: none)");
-  Binder ext = refine.section("extensions",
-                              "extensions of the paper's model: off, on, or auto (kept where an "
-                              "information criterion says it earns its place in the window)");
-  ext.choice("resistance_tempco", out.extensions.resistance_tempco, scp::refine::ExtensionMode::off,
-             kExtensionModes, "R = R0·(1 + ρT̄): the heating θ6·V²/(1 + ρT̄)");
-  ext.choice("stiffness_softening", out.extensions.stiffness_softening,
-             scp::refine::ExtensionMode::off, kExtensionModes,
-             "k = k0·(1 − κT̄): a force +θ3·κ·T̄·x");
-  ext.choice("cooling_tempco", out.extensions.cooling_tempco, scp::refine::ExtensionMode::off,
-             kExtensionModes, "λ = λ0·(1 + γT̄): the cooling −θ5·(1 + γT̄)·T̄");
+  declare_unfitted_terms(nuisance,
+                         refine.section("extensions",
+                                        "extensions of the paper's model (not fitted "
+                                        "yet: only `off`, docs/numerics.md)"),
+                         out);
 }
 
 void declare_sensors(Binder sensors, RefineSettings& out) {

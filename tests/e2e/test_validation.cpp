@@ -129,5 +129,37 @@ TEST(Validation, ConfigErrorsNameTheKey) {
   }
 }
 
+// The terms the fit does not estimate yet are refused, naming the key, rather than accepted and
+// ignored; their off / 0 settings load.
+TEST(Validation, UnfittedTermsAreRefusedNamingTheKey) {
+  TempDir dir;
+  const std::pair<json, std::string> cases[] = {
+      {{{"refine", {{"nuisance", {{"sensor_lag", "estimate"}}}}}}, "refine.nuisance.sensor_lag"},
+      {{{"refine", {{"nuisance", {{"sensor_lag", 0.3}}}}}}, "refine.nuisance.sensor_lag"},
+      {{{"refine", {{"extensions", {{"resistance_tempco", "on"}}}}}},
+       "refine.extensions.resistance_tempco"},
+      {{{"refine", {{"extensions", {{"stiffness_softening", "auto"}}}}}},
+       "refine.extensions.stiffness_softening"},
+      {{{"refine", {{"extensions", {{"cooling_tempco", "on"}}}}}},
+       "refine.extensions.cooling_tempco"},
+  };
+  for (const auto& [bad, key] : cases) {
+    write_config(dir.file("bad.yaml"), merge_config(base_config(dir.path()), bad));
+    const ProcessResult r =
+        run_process({estimatord_path(), "--check-config", dir.file("bad.yaml")}, Seconds(30));
+    EXPECT_NE(r.exit_code, 0) << key;
+    EXPECT_TRUE(contains(r.err + r.out, key)) << key << ": " << r.err << r.out;
+    EXPECT_TRUE(contains(r.err + r.out, "not implemented yet")) << key << ": " << r.err << r.out;
+  }
+  write_config(
+      dir.file("off.yaml"),
+      merge_config(base_config(dir.path()), {{"refine",
+                                              {{"nuisance", {{"sensor_lag", 0}}},
+                                               {"extensions", {{"resistance_tempco", "off"}}}}}}));
+  const ProcessResult ok =
+      run_process({estimatord_path(), "--check-config", dir.file("off.yaml")}, Seconds(30));
+  EXPECT_EQ(ok.exit_code, 0) << ok.err << ok.out;
+}
+
 }  // namespace
 }  // namespace scp::test
