@@ -17,6 +17,7 @@
 #include "daemon/analysis/health/health_view.hpp"
 #include "daemon/analysis/refine/refiner.hpp"
 #include "health/monitor.hpp"
+#include "refine/model_simulator.hpp"
 #include "refine/sensitivities.hpp"
 
 namespace scp::daemon::health {
@@ -57,6 +58,11 @@ class HealthRunner final : public refine::FitObserver {
   scp::refine::WindowSample last_sample_{};
   std::uint64_t generation_ = 0;
   double input_delay_ = 0.0;
+  // The fit's nuisance terms (refine/fit_terms.hpp): the model's outputs plus x_zero, and
+  // ambient_offset + ambient_drift·(t − t0) with t0 its window's first sample.
+  double x_zero_ = 0.0, ambient_offset_ = 0.0, ambient_drift_ = 0.0, t0_ = 0.0;
+  // The fitted model's states through its window (seed()).
+  std::vector<scp::refine::ModelState> states_;
   scp::health::Vector2 inverse_sigma_ = scp::health::Vector2::Zero();
   HealthView view_{};
 };
