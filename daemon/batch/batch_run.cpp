@@ -12,6 +12,7 @@
 #include "daemon/analysis/health/health_agent.hpp"
 #include "daemon/analysis/refine/refine_worker.hpp"
 #include "daemon/analysis/refine/refiner.hpp"
+#include "daemon/config/binder.hpp"
 #include "daemon/core/loop.hpp"
 #include "daemon/outputs/recording/recorder.hpp"
 #include "daemon/outputs/server/render.hpp"
@@ -113,6 +114,9 @@ void BatchRun::start_health() {
   std::string warning;
   if (std::optional<health::Baseline> b = load_baseline(cfg_, warning)) {
     health_->runner().set_baseline(b, baseline_path(cfg_));
+  } else if (!cfg_.health.baseline_file.empty()) {
+    // A baseline the configuration names is wanted: the run's own start is no substitute.
+    throw config::ConfigError("health.baseline.file: " + warning);
   } else {
     health_->runner().adopt_first_fit();
   }
@@ -158,6 +162,8 @@ void BatchRun::run_cycles() {
   if (refiner_) {
     refiner_->drain(*handoff_);
     if (refiner_->has_unfitted_data()) refine_now(t_last);  // the final window
+    // What the samples after the last fit raised, which no fit's poll will collect now.
+    if (health_) health_->poll();
   }
 }
 

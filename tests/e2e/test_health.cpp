@@ -167,6 +167,21 @@ TEST(Health, BaselineIsLoadedAtStart) {
   EXPECT_EQ(again.status()["health"]["baseline"], true) << again.status()["health"].dump();
 }
 
+// A batch run told to compare with a baseline file it cannot read stops with a configuration
+// error naming the key, rather than comparing with its own first window without a word.
+TEST(Health, ABatchRunRefusesABaselineFileItCannotRead) {
+  TempDir dir;
+  json cfg = batch_config(dir.path(), "R", 1.0);
+  cfg["health"] = {{"baseline", {{"file", dir.file("missing.baseline.json")}}}};
+  write_config(dir.file("c.yaml"), cfg);
+  const ProcessResult r = run_process(
+      {estimatord_path(), "--config", dir.file("c.yaml"), "--offline", "--duration", "10"},
+      Seconds(120));
+  EXPECT_EQ(r.exit_code, 78) << r.err << r.out;
+  EXPECT_TRUE(contains(r.err, "health.baseline.file")) << r.err;
+  EXPECT_TRUE(contains(r.err, "missing.baseline.json")) << r.err;
+}
+
 // Unprivileged peers may read but not save.
 TEST(Health, SavingNeedsPrivilege) {
   TempDir dir;
