@@ -464,9 +464,14 @@ void declare_health(Binder health, HealthConfig& out) {
                 "a baseline made elsewhere (scp-estimatorctl baseline show prints the format); "
                 "\"\" = <state.directory>/<actuator.name>.baseline.json, written by "
                 "`scp-estimatorctl baseline save`");
-  if (const std::string error = health::validate(h); !error.empty()) {
-    const std::string key = error.substr(std::string("health.").size(), error.find(':') - 7);
-    health.fail(key, error);
+  // Each key's range is the Binder's; what is left are the two relations between keys.
+  if (h.reference_span_s > h.trend_span_s) {
+    health.fail("reference_span_s",
+                "must not exceed health.trend_span_s (the reference is taken from the windows "
+                "the trend keeps)");
+  }
+  if (h.trend_min_span_s > h.trend_span_s) {
+    health.fail("trend_min_span_s", "must not exceed health.trend_span_s");
   }
 }
 

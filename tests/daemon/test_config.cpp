@@ -205,6 +205,21 @@ TEST(Config, NuisanceTermsAreEstimatedOrHeld) {
   EXPECT_NE(ext.find("not implemented yet"), std::string::npos) << ext;
 }
 
+// The two relations between health keys (each key's range is the Binder's): the error names the
+// key that breaks it and its line.
+TEST(Config, HealthCrossKeyChecks) {
+  const std::string reference =
+      error_of("health:\n  trend_span_s: 600\n  reference_span_s: 1200\n");
+  EXPECT_NE(reference.find("health.reference_span_s"), std::string::npos) << reference;
+  EXPECT_NE(reference.find("must not exceed health.trend_span_s"), std::string::npos) << reference;
+  const std::string min_span = error_of(
+      "health:\n  trend_span_s: 600\n  reference_span_s: 300\n"
+      "  trend_min_span_s: 900\n");
+  EXPECT_NE(min_span.find("health.trend_min_span_s"), std::string::npos) << min_span;
+  EXPECT_EQ(error_of("health: {trend_span_s: 600, reference_span_s: 600, trend_min_span_s: 600}\n"),
+            "(no error)");
+}
+
 // The refinement's window is preallocated: its size is checked against the period, and a fit
 // needs min_window_s of it.
 TEST(Config, RefineSection) {
