@@ -180,6 +180,9 @@ TEST(Health, ABatchRunRefusesABaselineFileItCannotRead) {
   EXPECT_EQ(r.exit_code, 78) << r.err << r.out;
   EXPECT_TRUE(contains(r.err, "health.baseline.file")) << r.err;
   EXPECT_TRUE(contains(r.err, "missing.baseline.json")) << r.err;
+  // The baseline's own words, not the checkpoint's (state.path).
+  EXPECT_TRUE(contains(r.err, "no baseline at")) << r.err;
+  EXPECT_FALSE(contains(r.err, "checkpoint")) << r.err;
 }
 
 // Unprivileged peers may read but not save.
