@@ -369,7 +369,7 @@ void nuisance_key(Binder& b, std::string_view key, scp::refine::NuisanceSetting&
 
 // The temperature sensor's lag and the extensions ρ, κ, γ: the fit does not estimate them yet
 // (docs/numerics.md), so anything but 0 / `off` is refused rather than silently ignored.
-void declare_unfitted_terms(Binder& nuisance, Binder ext, RefineSettings& out) {
+void declare_unfitted_terms(Binder& refine, Binder& nuisance, RefineSettings& out) {
   const auto refuse = [](const Binder& b, std::string_view key, std::string_view what) {
     b.fail(key, "not implemented yet: the fit does not estimate " + std::string(what) +
                     " (docs/numerics.md); only `off` (0)");
@@ -380,6 +380,9 @@ void declare_unfitted_terms(Binder& nuisance, Binder ext, RefineSettings& out) {
                           "yet, only 0)");
   if (!lag || *lag != 0.0) refuse(nuisance, "sensor_lag", "the temperature sensor's lag");
   out.nuisance.sensor_lag = {};
+  Binder ext = refine.section("extensions",
+                              "extensions of the paper's model (not fitted yet: only `off`, "
+                              "docs/numerics.md)");
   const std::tuple<const char*, scp::refine::ExtensionMode*, const char*, const char*> exts[] = {
       {"resistance_tempco", &out.extensions.resistance_tempco,
        "ρ (the heater's resistance's "
@@ -416,11 +419,7 @@ void declare_refine_bench(Binder& refine, RefineSettings& out) {
                "°C the true ambient lies above actuator.ambient_c");
   nuisance_key(nuisance, "ambient_drift", out.nuisance.ambient_drift, -100.0, 100.0, 1.0 / 3600.0,
                "°C per hour the ambient moves over the window");
-  declare_unfitted_terms(nuisance,
-                         refine.section("extensions",
-                                        "extensions of the paper's model (not fitted "
-                                        "yet: only `off`, docs/numerics.md)"),
-                         out);
+  declare_unfitted_terms(refine, nuisance, out);
 }
 
 void declare_sensors(Binder sensors, RefineSettings& out) {
