@@ -44,12 +44,6 @@ std::unique_ptr<drivers::Driver> batch_driver(config::DaemonConfig& cfg,
     cfg.loop.period_s = replay_driver->period();
     cfg.estimator.nominal_period = replay_driver->period();
   }
-  // A file without V_since does not say which interval its voltages belong to (a lab script may
-  // log the command issued at t): `auto` lets the refinement estimate it.
-  if (cfg.refine.voltage_interval_choice == config::VoltageIntervalChoice::automatic &&
-      !replay_driver->trace().voltage_since_column) {
-    cfg.refine.voltage_interval = scp::refine::VoltageInterval::estimate;
-  }
   replay = replay_driver.get();
   return replay_driver;
 }
@@ -91,6 +85,7 @@ class BatchRun {
 BatchRun::BatchRun(config::DaemonConfig cfg, const BatchOptions& options)
     : cfg_(std::move(cfg)), options_(options) {
   driver_ = batch_driver(cfg_, options_, replay_);
+  config::resolve_voltage_interval(cfg_.refine, driver_->stamps_voltage_instants());
   driver_->open();
   if (!options_.record_path.empty()) {
     record_ring_ = std::make_unique<RecordRing>();

@@ -404,12 +404,13 @@ void declare_unfitted_terms(Binder& refine, Binder& nuisance, RefineSettings& ou
 
 // What the refined fit is told about a real bench (refine/fit_terms.hpp, issue 28).
 void declare_refine_bench(Binder& refine, RefineSettings& out) {
-  refine.choice("voltage_interval", out.voltage_interval_choice, VoltageIntervalChoice::automatic,
-                kVoltageIntervals,
-                "which interval a row's voltage was applied over: `before` its sample (the "
-                "daemon's drivers and recordings, V_since), `after` it (a log writing the command "
-                "issued at t), `estimate` (fit both, keep the better). `auto`: before, except "
-                "estimate for a --replay of a file without a V_since column");
+  refine.choice(
+      "voltage_interval", out.voltage_interval_choice, VoltageIntervalChoice::automatic,
+      kVoltageIntervals,
+      "which interval a row's voltage was applied over: `before` its sample (the "
+      "daemon's drivers and recordings, V_since), `after` it (a log writing the command "
+      "issued at t), `estimate` (fit both, keep the better). `auto`: before, except "
+      "estimate for a replayed file (--replay or driver.type: replay) without a V_since column");
   Binder nuisance = refine.section("nuisance",
                                    "nuisance terms of a real bench, estimated beside θ unless "
                                    "held at a declared value (published in refined.nuisance)");

@@ -176,6 +176,21 @@ TEST(Config, CrossKeyChecks) {
   EXPECT_NE(error_of("estimator: {p0: 10, p_max: 1}\n").find("p_max"), std::string::npos);
 }
 
+// The two relations between health keys (each key's range is the Binder's): the error names the
+// key that breaks it and its line.
+TEST(Config, HealthCrossKeyChecks) {
+  const std::string reference =
+      error_of("health:\n  trend_span_s: 600\n  reference_span_s: 1200\n");
+  EXPECT_NE(reference.find("health.reference_span_s"), std::string::npos) << reference;
+  EXPECT_NE(reference.find("must not exceed health.trend_span_s"), std::string::npos) << reference;
+  const std::string min_span = error_of(
+      "health:\n  trend_span_s: 600\n  reference_span_s: 300\n"
+      "  trend_min_span_s: 900\n");
+  EXPECT_NE(min_span.find("health.trend_min_span_s"), std::string::npos) << min_span;
+  EXPECT_EQ(error_of("health: {trend_span_s: 600, reference_span_s: 600, trend_min_span_s: 600}\n"),
+            "(no error)");
+}
+
 // refine.nuisance.*: `estimate` (the default of the three output terms) frees the term, a number
 // holds it there (in the fit's units); the sensor's lag is 0 unless refused.
 TEST(Config, NuisanceTermsAreEstimatedOrHeld) {
@@ -205,19 +220,28 @@ TEST(Config, NuisanceTermsAreEstimatedOrHeld) {
   EXPECT_NE(ext.find("not implemented yet"), std::string::npos) << ext;
 }
 
-// The two relations between health keys (each key's range is the Binder's): the error names the
-// key that breaks it and its line.
-TEST(Config, HealthCrossKeyChecks) {
-  const std::string reference =
-      error_of("health:\n  trend_span_s: 600\n  reference_span_s: 1200\n");
-  EXPECT_NE(reference.find("health.reference_span_s"), std::string::npos) << reference;
-  EXPECT_NE(reference.find("must not exceed health.trend_span_s"), std::string::npos) << reference;
-  const std::string min_span = error_of(
-      "health:\n  trend_span_s: 600\n  reference_span_s: 300\n"
-      "  trend_min_span_s: 900\n");
-  EXPECT_NE(min_span.find("health.trend_min_span_s"), std::string::npos) << min_span;
-  EXPECT_EQ(error_of("health: {trend_span_s: 600, reference_span_s: 600, trend_min_span_s: 600}\n"),
-            "(no error)");
+// refine.voltage_interval is resolved once the driver is made: `auto` is before when the driver
+// stamps when each voltage took effect, estimate when it does not (a replayed file without
+// V_since); a stated interval is kept whatever the driver.
+TEST(Config, VoltageIntervalIsResolvedByWhatTheDriverStamps) {
+  using scp::refine::VoltageInterval;
+  RefineSettings r;
+  r.voltage_interval_choice = VoltageIntervalChoice::automatic;
+  resolve_voltage_interval(r, true);
+  EXPECT_EQ(r.voltage_interval, VoltageInterval::before);
+  resolve_voltage_interval(r, false);
+  EXPECT_EQ(r.voltage_interval, VoltageInterval::estimate);
+  const std::pair<VoltageIntervalChoice, VoltageInterval> stated[] = {
+      {VoltageIntervalChoice::before, VoltageInterval::before},
+      {VoltageIntervalChoice::after, VoltageInterval::after},
+      {VoltageIntervalChoice::estimate, VoltageInterval::estimate}};
+  for (const auto& [choice, interval] : stated) {
+    for (const bool stamps : {true, false}) {
+      r.voltage_interval_choice = choice;
+      resolve_voltage_interval(r, stamps);
+      EXPECT_EQ(r.voltage_interval, interval) << static_cast<int>(choice) << stamps;
+    }
+  }
 }
 
 // The refinement's window is preallocated: its size is checked against the period, and a fit
