@@ -101,7 +101,8 @@ BatchRun::BatchRun(config::DaemonConfig cfg, const BatchOptions& options)
                 /*block_when_record_full=*/true, handoff_.get());
 }
 
-// The baseline file if there is one, else the run's first converged window.
+// The baseline file if there is one, else the run's first converged window of refine.window_s
+// (less one period: a window's span is its samples' first to last instant).
 void BatchRun::start_health() {
   health_link_ = std::make_unique<health::HealthLink>();
   health_ = std::make_unique<health::HealthAgent>(cfg_.health.settings, *health_link_,
@@ -113,7 +114,7 @@ void BatchRun::start_health() {
     // A baseline the configuration names is wanted: the run's own start is no substitute.
     throw config::ConfigError("health.baseline.file: " + warning);
   } else {
-    health_->runner().adopt_first_fit();
+    health_->runner().adopt_first_fit(cfg_.refine.window_s - cfg_.loop.period_s);
   }
   refiner_->set_observer(health_.get());
 }

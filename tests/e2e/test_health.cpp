@@ -19,7 +19,7 @@ constexpr const char* kDuration = "420";
 
 // Good lab sensors (N1), 120 s windows refitted every 30 s: long enough for the mechanical block
 // to be determined in each window, few enough fits to keep the run short. Without a baseline
-// file the batch run takes its first converged window as the baseline.
+// file the batch run takes its first converged full (120 s) window as the baseline.
 json batch_config(const std::string& dir, const std::string& step_parameter, double factor) {
   return merge_config(
       base_config(dir),

@@ -108,11 +108,11 @@ void HealthRunner::on_fit(const scp::refine::FitResult& fit,
       fit.converged && fit.theta.allFinite() && fit.covariance.allFinite() && !window.empty();
   if (!usable) return;
   remember_fit(fit);
-  if (!monitor_ && adopt_first_fit_) {
+  if (!monitor_ && adopt_first_fit_ && fit.t_end - fit.t_begin >= adopt_min_span_s_) {
     Baseline first;
     first.window = {fit.t_begin, fit.t_end, fit.theta, fit.covariance};
     first.verdict = view_.fit_verdict.data();
-    set_baseline(first, "the run's first converged window");
+    set_baseline(first, "the run's first converged full window");
     adopt_first_fit_ = false;
   }
   if (monitor_) {

@@ -28,9 +28,14 @@ class HealthRunner final : public refine::FitObserver {
 
   // A new baseline (or none: the monitor stops, the state is blind). Restarts the monitor.
   void set_baseline(const std::optional<Baseline>& baseline, const std::string& source);
-  // Without a baseline, the next converged fit becomes it (a batch run with no baseline file:
-  // changes are then found against the run's own start).
-  void adopt_first_fit() noexcept { adopt_first_fit_ = true; }
+  // Without a baseline, the next converged fit of a window spanning at least `min_span_s`
+  // becomes it (a batch run with no baseline file: changes are then found against the run's own
+  // start). A full window, not the first short one: with the nuisance terms free a window shorter
+  // than the thermal time scale leaves θ5, θ6 loose, a baseline that hides later changes.
+  void adopt_first_fit(double min_span_s) noexcept {
+    adopt_first_fit_ = true;
+    adopt_min_span_s_ = min_span_s;
+  }
   // The user has seen the latched state, at loop time t.
   void acknowledge(double t);
 
@@ -52,6 +57,7 @@ class HealthRunner final : public refine::FitObserver {
 
   scp::health::HealthSettings settings_;
   bool adopt_first_fit_ = false;
+  double adopt_min_span_s_ = 0.0;
   std::optional<scp::health::HealthMonitor> monitor_;
   // The residual simulator, seeded at the last converged fit's end.
   std::optional<scp::refine::SensitivitySimulator> simulator_;
