@@ -107,6 +107,11 @@ class Driver {
   // reach the device, for the log; "" when it has nothing to say.
   virtual std::string background_error() const { return {}; }
 
+  // Whether the samples say when their voltage took effect (Sample::voltage_since): the daemon's
+  // drivers do; a replayed file only with a V_since column. Without it, which interval a row's
+  // voltage belongs to is not known (refine.voltage_interval `auto` estimates it then).
+  virtual bool stamps_voltage_instants() const noexcept { return true; }
+
   // Only a simulated device knows the truth; real drivers keep the default.
   virtual bool true_theta(double /*t*/, std::array<double, 6>& /*theta*/) const noexcept {
     return false;

@@ -12,6 +12,7 @@
 #include "daemon/analysis/health/health_agent.hpp"
 #include "daemon/analysis/refine/refine_worker.hpp"
 #include "daemon/analysis/refine/refiner.hpp"
+#include "daemon/config/binder.hpp"
 #include "daemon/core/loop.hpp"
 #include "daemon/outputs/recording/recorder.hpp"
 #include "daemon/outputs/server/render.hpp"
@@ -42,12 +43,6 @@ std::unique_ptr<drivers::Driver> batch_driver(config::DaemonConfig& cfg,
   if (std::fabs(replay_driver->period() - cfg.loop.period_s) > 0.01 * cfg.loop.period_s) {
     cfg.loop.period_s = replay_driver->period();
     cfg.estimator.nominal_period = replay_driver->period();
-  }
-  // A file without V_since does not say which interval its voltages belong to (a lab script may
-  // log the command issued at t): `auto` lets the refinement estimate it.
-  if (cfg.refine.voltage_interval_choice == config::VoltageIntervalChoice::automatic &&
-      !replay_driver->trace().voltage_since_column) {
-    cfg.refine.voltage_interval = scp::refine::VoltageInterval::estimate;
   }
   replay = replay_driver.get();
   return replay_driver;
@@ -90,6 +85,7 @@ class BatchRun {
 BatchRun::BatchRun(config::DaemonConfig cfg, const BatchOptions& options)
     : cfg_(std::move(cfg)), options_(options) {
   driver_ = batch_driver(cfg_, options_, replay_);
+  config::resolve_voltage_interval(cfg_.refine, driver_->stamps_voltage_instants());
   driver_->open();
   if (!options_.record_path.empty()) {
     record_ring_ = std::make_unique<RecordRing>();
@@ -105,7 +101,8 @@ BatchRun::BatchRun(config::DaemonConfig cfg, const BatchOptions& options)
                 /*block_when_record_full=*/true, handoff_.get());
 }
 
-// The baseline file if there is one, else the run's first converged window.
+// The baseline file if there is one, else the run's first converged window of refine.window_s
+// (less one period: a window's span is its samples' first to last instant).
 void BatchRun::start_health() {
   health_link_ = std::make_unique<health::HealthLink>();
   health_ = std::make_unique<health::HealthAgent>(cfg_.health.settings, *health_link_,
@@ -113,8 +110,11 @@ void BatchRun::start_health() {
   std::string warning;
   if (std::optional<health::Baseline> b = load_baseline(cfg_, warning)) {
     health_->runner().set_baseline(b, baseline_path(cfg_));
+  } else if (!cfg_.health.baseline_file.empty()) {
+    // A baseline the configuration names is wanted: the run's own start is no substitute.
+    throw config::ConfigError("health.baseline.file: " + warning);
   } else {
-    health_->runner().adopt_first_fit();
+    health_->runner().adopt_first_fit(cfg_.refine.window_s - cfg_.loop.period_s);
   }
   refiner_->set_observer(health_.get());
 }
@@ -158,6 +158,8 @@ void BatchRun::run_cycles() {
   if (refiner_) {
     refiner_->drain(*handoff_);
     if (refiner_->has_unfitted_data()) refine_now(t_last);  // the final window
+    // What the samples after the last fit raised, which no fit's poll will collect now.
+    if (health_) health_->poll();
   }
 }
 

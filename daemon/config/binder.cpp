@@ -166,6 +166,26 @@ void Binder::number(std::string_view key, double& out, double def, double min, d
   out = parsed;
 }
 
+void Binder::number_or_word(std::string_view key, std::optional<double>& out, std::string_view word,
+                            std::string_view def, double min, double max, std::string_view doc) {
+  const std::string w(word);
+  impl_->declare(key, "number or `" + w + "`", std::string(def), range_text(min, max), doc);
+  const std::string expect =
+      "in " + range_text(min, max) + " or `" + w + "` (" + std::string(doc) + ")";
+  const auto parse = [&](const YAML::Node& value) -> std::optional<double> {
+    if (value.IsScalar() && value.Scalar() == word) return std::nullopt;
+    const double parsed = impl_->read_number(key, value, expect);
+    if (parsed < min || parsed > max) {
+      impl_->fail_at(value, key, format_number(parsed) + " is out of range; allowed " + expect);
+    }
+    return parsed;
+  };
+  out = parse(YAML::Node(std::string(def)));
+  const YAML::Node value = impl_->child(key);
+  if (!value.IsDefined() || value.IsNull()) return;
+  out = parse(value);
+}
+
 void Binder::integer(std::string_view key, std::int64_t& out, std::int64_t def, std::int64_t min,
                      std::int64_t max, std::string_view doc) {
   const std::string range = "[" + std::to_string(min) + ", " + std::to_string(max) + "]";

@@ -10,6 +10,7 @@
 #include <functional>
 #include <initializer_list>
 #include <memory>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -66,6 +67,10 @@ class Binder {
             static_cast<std::int64_t>(max), doc);
     out = static_cast<T>(value);
   }
+  // A number in [min, max], or `word` (out left empty): e.g. a term held at a value or
+  // `estimate`d. `def` is the default as written in the file (`word` or a number).
+  void number_or_word(std::string_view key, std::optional<double>& out, std::string_view word,
+                      std::string_view def, double min, double max, std::string_view doc);
   void boolean(std::string_view key, bool& out, bool def, std::string_view doc);
   void text(std::string_view key, std::string& out, std::string_view def, std::string_view doc);
   void choice(std::string_view key, std::string& out, std::string_view def,

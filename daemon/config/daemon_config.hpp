@@ -155,8 +155,8 @@ struct RefineSettings {
   LinkTiming link_timing = LinkTiming::automatic;
   bool estimate_link_timing = false;
   double max_input_delay_s = 0.005;  // the delay is searched within ± this
-  // Which interval a row's voltage was applied over; resolved into voltage_interval (the batch
-  // run resolves `auto` for a replayed file without V_since into estimate).
+  // Which interval a row's voltage was applied over; resolved into voltage_interval once the
+  // driver is made (resolve_voltage_interval).
   VoltageIntervalChoice voltage_interval_choice = VoltageIntervalChoice::automatic;
   scp::refine::VoltageInterval voltage_interval = scp::refine::VoltageInterval::before;
   // The nuisance terms (estimated unless fixed) and the model's extensions (issue 28).
@@ -212,6 +212,10 @@ struct DaemonConfig {
 // paper's excitation profile, the refinement's link timing. The loader calls it after reading;
 // a test that starts from the structs' defaults calls it to get what an empty file gives.
 void derive_settings(DaemonConfig& config);
+// refine.voltage_interval into RefineSettings::voltage_interval, once the driver is made: `auto`
+// is before when the driver stamps when each voltage took effect
+// (drivers::Driver::stamps_voltage_instants), else estimate. Service and batch runs alike.
+void resolve_voltage_interval(RefineSettings& refine, bool driver_stamps_voltage) noexcept;
 
 // Declares every key on `root` and fills `out`. Throws ConfigError naming key, line and range.
 void declare_daemon_keys(Binder& root, DaemonConfig& out);

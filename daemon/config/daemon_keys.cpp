@@ -7,8 +7,10 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <string>
+#include <tuple>
 
 #include "daemon/config/binder.hpp"
 #include "daemon/config/config_file.hpp"
@@ -355,41 +357,59 @@ void declare_refine(Binder& refine, RefineSettings& out) {
                 "not converge");
 }
 
-// A nuisance term: `estimate` (the default) or the number it is held at, in [min, max] × `scale`
-// of the key's unit (the fit's unit is the key's times scale).
-std::string short_number(double v) {
-  std::ostringstream out;
-  out << v;
-  return out.str();
+// A nuisance term: `estimate` (the default) or the number it is held at, in [min, max] of the
+// key's unit (the fit's unit is the key's times `scale`).
+void nuisance_key(Binder& b, std::string_view key, scp::refine::NuisanceSetting& out, double min,
+                  double max, double scale, std::string_view doc) {
+  std::optional<double> held;
+  b.number_or_word(key, held, "estimate", "estimate", min, max, doc);
+  out = {.fixed = held.has_value(), .value = held.value_or(0.0) * scale};
 }
 
-void nuisance_key(Binder& b, std::string_view key, scp::refine::NuisanceSetting& out, double min,
-                  double max, double scale, const std::string& doc) {
-  std::string text;
-  b.text(key, text, "estimate",
-         "`estimate`, or the number it is held at in [" + short_number(min) + ", " +
-             short_number(max) + "]: " + doc);
-  out = {};
-  if (text == "estimate") return;
-  char* end = nullptr;
-  const double v = std::strtod(text.c_str(), &end);
-  if (text.empty() || end != text.c_str() + text.size() || !std::isfinite(v) || v < min ||
-      v > max) {
-    b.fail(key, "'" + text + "' is neither `estimate` nor a number in [" + short_number(min) +
-                    ", " + short_number(max) + "] (" + doc + ")");
+// The temperature sensor's lag and the extensions ρ, κ, γ: the fit does not estimate them yet
+// (docs/numerics.md), so anything but 0 / `off` is refused rather than silently ignored.
+void declare_unfitted_terms(Binder& refine, Binder& nuisance, RefineSettings& out) {
+  const auto refuse = [](const Binder& b, std::string_view key, std::string_view what) {
+    b.fail(key, "not implemented yet: the fit does not estimate " + std::string(what) +
+                    " (docs/numerics.md); only `off` (0)");
+  };
+  std::optional<double> lag;
+  nuisance.number_or_word("sensor_lag", lag, "estimate", "0", 0.0, 100.0,
+                          "first-order lag of the temperature sensor, s (0: none; not fitted "
+                          "yet, only 0)");
+  if (!lag || *lag != 0.0) refuse(nuisance, "sensor_lag", "the temperature sensor's lag");
+  out.nuisance.sensor_lag = {};
+  Binder ext = refine.section("extensions",
+                              "extensions of the paper's model (not fitted yet: only `off`, "
+                              "docs/numerics.md)");
+  const std::tuple<const char*, scp::refine::ExtensionMode*, const char*, const char*> exts[] = {
+      {"resistance_tempco", &out.extensions.resistance_tempco,
+       "ρ (the heater's resistance's "
+       "temperature coefficient)",
+       "R = R0·(1 + ρT̄): the heating θ6·V²/(1 + ρT̄)"},
+      {"stiffness_softening", &out.extensions.stiffness_softening,
+       "κ (the stiffness's "
+       "softening with temperature)",
+       "k = k0·(1 − κT̄): a force +θ3·κ·T̄·x"},
+      {"cooling_tempco", &out.extensions.cooling_tempco,
+       "γ (the cooling's temperature "
+       "coefficient)",
+       "λ = λ0·(1 + γT̄): the cooling −θ5·(1 + γT̄)·T̄"}};
+  for (const auto& [key, mode, what, doc] : exts) {
+    ext.choice(key, *mode, scp::refine::ExtensionMode::off, kExtensionModes, doc);
+    if (*mode != scp::refine::ExtensionMode::off) refuse(ext, key, what);
   }
-  out.fixed = true;
-  out.value = v * scale;
 }
 
 // What the refined fit is told about a real bench (refine/fit_terms.hpp, issue 28).
 void declare_refine_bench(Binder& refine, RefineSettings& out) {
-  refine.choice("voltage_interval", out.voltage_interval_choice, VoltageIntervalChoice::automatic,
-                kVoltageIntervals,
-                "which interval a row's voltage was applied over: `before` its sample (the "
-                "daemon's drivers and recordings, V_since), `after` it (a log writing the command "
-                "issued at t), `estimate` (fit both, keep the better). `auto`: before, except "
-                "estimate for a --replay of a file without a V_since column");
+  refine.choice(
+      "voltage_interval", out.voltage_interval_choice, VoltageIntervalChoice::automatic,
+      kVoltageIntervals,
+      "which interval a row's voltage was applied over: `before` its sample (the "
+      "daemon's drivers and recordings, V_since), `after` it (a log writing the command "
+      "issued at t), `estimate` (fit both, keep the better). `auto`: before, except "
+      "estimate for a replayed file (--replay or driver.type: replay) without a V_since column");
   Binder nuisance = refine.section("nuisance",
                                    "nuisance terms of a real bench, estimated beside θ unless "
                                    "held at a declared value (published in refined.nuisance)");
@@ -399,18 +419,7 @@ void declare_refine_bench(Binder& refine, RefineSettings& out) {
                "°C the true ambient lies above actuator.ambient_c");
   nuisance_key(nuisance, "ambient_drift", out.nuisance.ambient_drift, -100.0, 100.0, 1.0 / 3600.0,
                "°C per hour the ambient moves over the window");
-  nuisance_key(nuisance, "sensor_lag", out.nuisance.sensor_lag, 0.0, 100.0, 1.0,
-               "first-order lag of the temperature sensor, s (0: none)");
-  Binder ext = refine.section("extensions",
-                              "extensions of the paper's model: off, on, or auto (kept where an "
-                              "information criterion says it earns its place in the window)");
-  ext.choice("resistance_tempco", out.extensions.resistance_tempco, scp::refine::ExtensionMode::off,
-             kExtensionModes, "R = R0·(1 + ρT̄): the heating θ6·V²/(1 + ρT̄)");
-  ext.choice("stiffness_softening", out.extensions.stiffness_softening,
-             scp::refine::ExtensionMode::off, kExtensionModes,
-             "k = k0·(1 − κT̄): a force +θ3·κ·T̄·x");
-  ext.choice("cooling_tempco", out.extensions.cooling_tempco, scp::refine::ExtensionMode::off,
-             kExtensionModes, "λ = λ0·(1 + γT̄): the cooling −θ5·(1 + γT̄)·T̄");
+  declare_unfitted_terms(refine, nuisance, out);
 }
 
 void declare_sensors(Binder sensors, RefineSettings& out) {
@@ -454,9 +463,14 @@ void declare_health(Binder health, HealthConfig& out) {
                 "a baseline made elsewhere (scp-estimatorctl baseline show prints the format); "
                 "\"\" = <state.directory>/<actuator.name>.baseline.json, written by "
                 "`scp-estimatorctl baseline save`");
-  if (const std::string error = health::validate(h); !error.empty()) {
-    const std::string key = error.substr(std::string("health.").size(), error.find(':') - 7);
-    health.fail(key, error);
+  // Each key's range is the Binder's; what is left are the two relations between keys.
+  if (h.reference_span_s > h.trend_span_s) {
+    health.fail("reference_span_s",
+                "must not exceed health.trend_span_s (the reference is taken from the windows "
+                "the trend keeps)");
+  }
+  if (h.trend_min_span_s > h.trend_span_s) {
+    health.fail("trend_min_span_s", "must not exceed health.trend_span_s");
   }
 }
 

@@ -17,19 +17,28 @@ void derive_settings(DaemonConfig& cfg) {
   cfg.refine.estimate_link_timing =
       cfg.refine.link_timing == LinkTiming::estimate ||
       (cfg.refine.link_timing == LinkTiming::automatic && cfg.driver.type != DriverType::sim);
-  // The daemon's own drivers stamp when each voltage took effect (V_since): the interval before.
-  switch (cfg.refine.voltage_interval_choice) {
-    case VoltageIntervalChoice::after:
-      cfg.refine.voltage_interval = scp::refine::VoltageInterval::after;
-      break;
-    case VoltageIntervalChoice::estimate:
-      cfg.refine.voltage_interval = scp::refine::VoltageInterval::estimate;
-      break;
-    default:
-      cfg.refine.voltage_interval = scp::refine::VoltageInterval::before;
-  }
   if (cfg.excitation.profile == ExcitationProfile::paper) {
     cfg.excitation.settings = excitation::paper_excitation();
+  }
+}
+
+void resolve_voltage_interval(RefineSettings& refine, bool driver_stamps_voltage) noexcept {
+  switch (refine.voltage_interval_choice) {
+    case VoltageIntervalChoice::after:
+      refine.voltage_interval = scp::refine::VoltageInterval::after;
+      break;
+    case VoltageIntervalChoice::estimate:
+      refine.voltage_interval = scp::refine::VoltageInterval::estimate;
+      break;
+    case VoltageIntervalChoice::before:
+      refine.voltage_interval = scp::refine::VoltageInterval::before;
+      break;
+    case VoltageIntervalChoice::automatic:
+      // The interval before when the driver stamps when each voltage took effect (V_since);
+      // otherwise (a replayed file without that column, perhaps a log of the command issued at
+      // t) the refinement estimates it.
+      refine.voltage_interval = driver_stamps_voltage ? scp::refine::VoltageInterval::before
+                                                      : scp::refine::VoltageInterval::estimate;
   }
 }
 

@@ -12,11 +12,17 @@ std::string baseline_path(const config::DaemonConfig& cfg) {
       .string();
 }
 
+const char* baseline_key(const config::DaemonConfig& cfg) noexcept {
+  return cfg.health.baseline_file.empty() ? "state.directory" : "health.baseline.file";
+}
+
 std::optional<health::Baseline> load_baseline(const config::DaemonConfig& cfg,
                                               std::string& warning) {
   const std::string path = baseline_path(cfg);
   std::string text;
-  if (!state::read_state_file(path, text, warning)) return std::nullopt;
+  if (!state::read_state_file(path, text, warning, kBaselineWhat, baseline_key(cfg))) {
+    return std::nullopt;
+  }
   std::string error;
   std::optional<health::Baseline> b = health::parse_baseline(text, error);
   if (!b) {

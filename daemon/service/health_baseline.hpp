@@ -12,6 +12,10 @@ namespace scp::daemon {
 
 // <state.directory>/<actuator.name>.baseline.json, or health.baseline.file.
 std::string baseline_path(const config::DaemonConfig& config);
+// The key that says where it lies: "health.baseline.file" or "state.directory".
+const char* baseline_key(const config::DaemonConfig& config) noexcept;
+// What messages call it.
+inline constexpr const char* kBaselineWhat = "baseline";
 
 // Reads a baseline; nullopt with `warning` when missing or unusable (a baseline of another
 // actuator in the state directory included).

@@ -47,6 +47,7 @@ std::optional<health::Baseline> from_view(const health::HealthView& v, std::stri
 
 HealthService::HealthService(const config::DaemonConfig& cfg, std::string driver_name)
     : path_(baseline_path(cfg)),
+      key_(baseline_key(cfg)),
       configured_file_(!cfg.health.baseline_file.empty()),
       actuator_(cfg.actuator.name),
       driver_(std::move(driver_name)),
@@ -96,7 +97,7 @@ HealthOutcome HealthService::save_baseline(double /*now_t*/) {
   b->driver = driver_;
   b->saved_unix_ns = clock::unix_ns();
   try {
-    state::write_state_file(path_, health::to_json(*b));
+    state::write_state_file(path_, health::to_json(*b), kBaselineWhat, key_);
   } catch (const std::exception& e) {
     outcome.message = e.what();
     return outcome;

@@ -34,6 +34,7 @@ class HealthService final : public server::HealthControl {
   void use(std::optional<health::Baseline> baseline);
 
   std::string path_;
+  const char* key_;       // the configuration key that says where path_ lies
   bool configured_file_;  // health.baseline.file: made elsewhere, never deleted here
   std::string actuator_;
   std::string driver_;

@@ -105,7 +105,7 @@ class Service {
   void log_final_output() const;
   double since_open() const { return seconds_between(opened_at_, Clock::now()); }
 
-  const config::DaemonConfig& cfg_;
+  config::DaemonConfig cfg_;  // a copy: refine.voltage_interval is resolved once the driver is made
   std::optional<state::StateLock> state_lock_;
   std::unique_ptr<drivers::Driver> driver_;
   std::string driver_name_;
@@ -141,6 +141,7 @@ Service::Service(const config::DaemonConfig& cfg) : cfg_(cfg) {
                           (cfg.source.empty() ? "" : ", config " + cfg.source));
   driver_ = make_driver(cfg);
   driver_name_ = std::string(driver_->name());
+  config::resolve_voltage_interval(cfg_.refine, driver_->stamps_voltage_instants());
   // Before any thread starts: small locked stacks instead of 8 MiB each (rt_setup.hpp).
   if (!rt::set_default_thread_stack(rt::kThreadStackBytes)) {
     spdlog::warn("could not set the threads' stack size to {} KiB; they keep the default",

@@ -34,6 +34,7 @@ class ReplayDriver final : public Driver {
   void safe_state() noexcept override { ++safe_states_; }
   void close() noexcept override {}
   DriverStats stats() const noexcept override { return stats_; }
+  bool stamps_voltage_instants() const noexcept override { return trace_.voltage_since_column; }
 
   double period() const noexcept { return trace_.period; }
   std::size_t size() const noexcept { return trace_.rows.size(); }

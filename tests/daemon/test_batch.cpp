@@ -9,6 +9,7 @@
 
 #include "daemon/batch/batch_run.hpp"
 #include "daemon/config/daemon_config.hpp"
+#include "drivers/replay/replay_driver.hpp"
 
 namespace scp::daemon {
 namespace {
@@ -154,6 +155,27 @@ TEST(Batch, RefinesEveryIntervalAndAtTheEndAndRecordsIt) {
   EXPECT_NE(field(after, refined_first), "");
   EXPECT_EQ(field(before, refined_first + 13), "paper");
   std::filesystem::remove(csv);
+}
+
+// A replayed file says when its voltages took effect only with a V_since column: the replay
+// driver reports it, so that refine.voltage_interval `auto` is resolved alike for --replay and
+// driver.type: replay.
+TEST(Batch, TheReplayDriverStampsVoltageInstantsOnlyWithAVSinceColumn) {
+  const auto write = [](const std::filesystem::path& path, bool v_since) {
+    std::ofstream out(path);
+    out << "t,x,xdot,T,V" << (v_since ? ",V_since" : "") << "\n";
+    for (int i = 0; i < 5; ++i) {
+      out << i * 0.001 << ",0,0,25,1" << (v_since ? "," : "") << "\n";
+    }
+  };
+  const auto with = temp_path("with-v-since.csv");
+  const auto without = temp_path("without-v-since.csv");
+  write(with, true);
+  write(without, false);
+  EXPECT_TRUE(drivers::replay::ReplayDriver(with.string()).stamps_voltage_instants());
+  EXPECT_FALSE(drivers::replay::ReplayDriver(without.string()).stamps_voltage_instants());
+  std::filesystem::remove(with);
+  std::filesystem::remove(without);
 }
 
 TEST(Batch, RecordingToAnUnwritablePathIsAClearError) {

@@ -176,6 +176,74 @@ TEST(Config, CrossKeyChecks) {
   EXPECT_NE(error_of("estimator: {p0: 10, p_max: 1}\n").find("p_max"), std::string::npos);
 }
 
+// The two relations between health keys (each key's range is the Binder's): the error names the
+// key that breaks it and its line.
+TEST(Config, HealthCrossKeyChecks) {
+  const std::string reference =
+      error_of("health:\n  trend_span_s: 600\n  reference_span_s: 1200\n");
+  EXPECT_NE(reference.find("health.reference_span_s"), std::string::npos) << reference;
+  EXPECT_NE(reference.find("must not exceed health.trend_span_s"), std::string::npos) << reference;
+  const std::string min_span = error_of(
+      "health:\n  trend_span_s: 600\n  reference_span_s: 300\n"
+      "  trend_min_span_s: 900\n");
+  EXPECT_NE(min_span.find("health.trend_min_span_s"), std::string::npos) << min_span;
+  EXPECT_EQ(error_of("health: {trend_span_s: 600, reference_span_s: 600, trend_min_span_s: 600}\n"),
+            "(no error)");
+}
+
+// refine.nuisance.*: `estimate` (the default of the three output terms) frees the term, a number
+// holds it there (in the fit's units); the sensor's lag is 0 unless refused.
+TEST(Config, NuisanceTermsAreEstimatedOrHeld) {
+  const DaemonConfig defaults = load_config_text("{}", "test.yaml");
+  EXPECT_FALSE(defaults.refine.nuisance.x_zero.fixed);
+  EXPECT_FALSE(defaults.refine.nuisance.ambient_offset.fixed);
+  EXPECT_FALSE(defaults.refine.nuisance.ambient_drift.fixed);
+  EXPECT_TRUE(defaults.refine.nuisance.sensor_lag.fixed);
+  EXPECT_EQ(defaults.refine.nuisance.sensor_lag.value, 0.0);
+  const DaemonConfig held = load_config_text(
+      "refine: {nuisance: {x_zero: 2.0e-5, ambient_offset: estimate, ambient_drift: 3.6}}\n",
+      "test.yaml");
+  EXPECT_TRUE(held.refine.nuisance.x_zero.fixed);
+  EXPECT_EQ(held.refine.nuisance.x_zero.value, 2.0e-5);
+  EXPECT_FALSE(held.refine.nuisance.ambient_offset.fixed);
+  EXPECT_TRUE(held.refine.nuisance.ambient_drift.fixed);
+  EXPECT_DOUBLE_EQ(held.refine.nuisance.ambient_drift.value, 0.001);  // °C/h → °C/s
+  const std::string word = error_of("refine: {nuisance: {x_zero: soon}}\n");
+  EXPECT_NE(word.find("refine.nuisance.x_zero"), std::string::npos) << word;
+  EXPECT_NE(word.find("`estimate`"), std::string::npos) << word;
+  const std::string range = error_of("refine: {nuisance: {ambient_offset: 51}}\n");
+  EXPECT_NE(range.find("out of range"), std::string::npos) << range;
+  const std::string lag = error_of("refine: {nuisance: {sensor_lag: 0.2}}\n");
+  EXPECT_NE(lag.find("not implemented yet"), std::string::npos) << lag;
+  const std::string ext = error_of("refine: {extensions: {cooling_tempco: auto}}\n");
+  EXPECT_NE(ext.find("refine.extensions.cooling_tempco"), std::string::npos) << ext;
+  EXPECT_NE(ext.find("not implemented yet"), std::string::npos) << ext;
+}
+
+// refine.voltage_interval is resolved once the driver is made: `auto` is before when the driver
+// stamps when each voltage took effect, estimate when it does not (a replayed file without
+// V_since); a stated interval is kept whatever the driver.
+TEST(Config, VoltageIntervalIsResolvedByWhatTheDriverStamps) {
+  using scp::refine::VoltageInterval;
+  RefineSettings r;
+  r.voltage_interval_choice = VoltageIntervalChoice::automatic;
+  resolve_voltage_interval(r, true);
+  EXPECT_EQ(r.voltage_interval, VoltageInterval::before);
+  resolve_voltage_interval(r, false);
+  EXPECT_EQ(r.voltage_interval, VoltageInterval::estimate);
+  const std::pair<VoltageIntervalChoice, VoltageInterval> stated[] = {
+      {VoltageIntervalChoice::before, VoltageInterval::before},
+      {VoltageIntervalChoice::after, VoltageInterval::after},
+      {VoltageIntervalChoice::estimate, VoltageInterval::estimate}};
+  for (const auto& [choice, interval] : stated) {
+    for (const bool stamps : {true, false}) {
+      r.voltage_interval_choice = choice;
+      resolve_voltage_interval(r, stamps);
+      EXPECT_EQ(r.voltage_interval, interval) << static_cast<int>(choice) << stamps;
+    }
+  }
+}
+
 // The refinement's window is preallocated: its size is checked against the period, and a fit
 // needs min_window_s of it.
 TEST(Config, RefineSection) {

@@ -12,6 +12,8 @@
 #include "daemon/analysis/refine/refiner.hpp"
 #include "daemon/analysis/refine/sample_window.hpp"
 #include "daemon/config/daemon_config.hpp"
+#include "refine/model_simulator.hpp"
+#include "refine/voltage_timing.hpp"
 
 namespace scp::daemon::refine {
 namespace {
@@ -319,6 +321,72 @@ TEST_F(RefinerTest, TheViewCarriesTheFitAndItsWindow) {
   EXPECT_EQ(v.samples, 301U);
   EXPECT_NEAR(v.fitted_at_t, 3.0, 1e-9);
   EXPECT_EQ(v.interval_s, settings_.interval_s);
+}
+
+// Keeps a copy of the window each fit was handed over with.
+class RecordingObserver : public FitObserver {
+ public:
+  void on_sample(const WindowSample&) noexcept override {}
+  void on_fit(const FitResult&, std::span<const WindowSample> window, std::int64_t) override {
+    window_.assign(window.begin(), window.end());
+  }
+  std::vector<WindowSample> window_;
+};
+
+// A log that writes the command issued at t (refine.voltage_interval: after), its outputs the
+// model's own, noise-free. The fit reads the window with each row's voltage moved to the next row
+// (refine::prepare_window); the paper law's validation, the fallback validation and the health
+// observer must read it so too: then θ̂ reproduces T̄ to rounding. On the raw window each switch
+// of V would leave a period's worth of heating in T̄'s residual (~0.1 °C).
+TEST_F(RefinerTest, TheValidationsAndTheObserverReadTheWindowAsTheFitDid) {
+  settings_.voltage_interval = scp::refine::VoltageInterval::after;
+  Vector6 theta;
+  theta << 1247, 0.8, 1813, 0.1, 0.0594, 1.1;
+  const scp::refine::InitialState initial(0.0, 0.0, 0.5);
+  std::vector<WindowSample> raw;
+  for (int k = 0; k <= 300; ++k) {
+    const double t = k * kPeriod;
+    raw.push_back({t, 0.0, 0.0, (k / 50) % 2 == 0 ? 1.0 : 3.0, -1e300});
+  }
+  std::vector<WindowSample> storage;
+  const auto prepared = scp::refine::prepare_window(raw, estimator::VoltageHold::zoh,
+                                                    scp::refine::VoltageInterval::after, storage);
+  std::vector<scp::refine::ModelState> states(raw.size());
+  scp::refine::simulate(prepared, theta, initial, states);
+  for (std::size_t k = 0; k < raw.size(); ++k) {
+    raw[k].x = states[k].x;
+    raw[k].tbar = states[k].tbar;
+  }
+
+  Refiner r(settings_, estimator_, kPeriod,
+            [&](std::span<const WindowSample> w, const Vector6&, const FitSettings& s) {
+              EXPECT_EQ(s.voltage_interval, scp::refine::VoltageInterval::after);
+              FitResult f;
+              f.converged = true;
+              f.theta = theta;
+              f.sigma = Vector6::Constant(1e-3);
+              f.initial_state = initial;
+              f.voltage_interval = scp::refine::VoltageInterval::after;
+              f.validated = false;  // the daemon validates it (validate_fit)
+              f.samples = w.size();
+              return f;
+            });
+  RecordingObserver observer;
+  r.set_observer(&observer);
+  for (const WindowSample& w : raw) r.accept({w, 0});
+  for (std::size_t i = 0; i < 6; ++i) paper_.theta_hat[i] = theta[static_cast<Eigen::Index>(i)];
+  const RefinedView& v = r.fit(paper_, raw.back().t, 0);
+
+  ASSERT_TRUE(v.paper_validated);
+  EXPECT_LT(v.paper_validation.thermal.residual_rms, 1e-9);
+  EXPECT_LT(v.paper_validation.mechanical.residual_rms, 1e-12);
+  ASSERT_TRUE(v.validated);
+  EXPECT_LT(v.validation.thermal.residual_rms, 1e-9);
+  EXPECT_LT(v.validation.mechanical.residual_rms, 1e-12);
+  ASSERT_EQ(observer.window_.size(), raw.size());
+  for (std::size_t k = 1; k < raw.size(); ++k) {
+    EXPECT_EQ(observer.window_[k].voltage, raw[k - 1].voltage) << k;
+  }
 }
 
 TEST(RefinedIsBest, OnlyARecentConvergedFitWithFiniteSigma) {

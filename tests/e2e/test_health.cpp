@@ -19,7 +19,7 @@ constexpr const char* kDuration = "420";
 
 // Good lab sensors (N1), 120 s windows refitted every 30 s: long enough for the mechanical block
 // to be determined in each window, few enough fits to keep the run short. Without a baseline
-// file the batch run takes its first converged window as the baseline.
+// file the batch run takes its first converged full (120 s) window as the baseline.
 json batch_config(const std::string& dir, const std::string& step_parameter, double factor) {
   return merge_config(
       base_config(dir),
@@ -165,6 +165,24 @@ TEST(Health, BaselineIsLoadedAtStart) {
   again.start();
   EXPECT_EQ(again.request({{"request", "baseline-show"}})["present"], true);
   EXPECT_EQ(again.status()["health"]["baseline"], true) << again.status()["health"].dump();
+}
+
+// A batch run told to compare with a baseline file it cannot read stops with a configuration
+// error naming the key, rather than comparing with its own first window without a word.
+TEST(Health, ABatchRunRefusesABaselineFileItCannotRead) {
+  TempDir dir;
+  json cfg = batch_config(dir.path(), "R", 1.0);
+  cfg["health"] = {{"baseline", {{"file", dir.file("missing.baseline.json")}}}};
+  write_config(dir.file("c.yaml"), cfg);
+  const ProcessResult r = run_process(
+      {estimatord_path(), "--config", dir.file("c.yaml"), "--offline", "--duration", "10"},
+      Seconds(120));
+  EXPECT_EQ(r.exit_code, 78) << r.err << r.out;
+  EXPECT_TRUE(contains(r.err, "health.baseline.file")) << r.err;
+  EXPECT_TRUE(contains(r.err, "missing.baseline.json")) << r.err;
+  // The baseline's own words, not the checkpoint's (state.path).
+  EXPECT_TRUE(contains(r.err, "no baseline at")) << r.err;
+  EXPECT_FALSE(contains(r.err, "checkpoint")) << r.err;
 }
 
 // Unprivileged peers may read but not save.

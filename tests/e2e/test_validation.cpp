@@ -76,6 +76,34 @@ TEST(Validation, UnmodelledResistanceTempcoIsNamedAndNeverRecommended) {
       << s["best_reason"];
 }
 
+// refine.nuisance.x_zero: `estimate` (the default) frees the sensor's zero, which the fit then
+// finds on a bench whose displacement sensor reads 20 µm at rest; a number holds it there. If
+// `estimate` held the term at 0 (as a default-constructed setting does), the first summary would
+// say estimated false; if a held value were dropped, the second would not report it.
+TEST(Validation, NuisanceXZeroIsEstimatedByDefaultAndHeldWhenANumberIsGiven) {
+  TempDir dir;
+  const json bench = noisy_bench(dir, {{"sensor", {{"x_zero_m", 2e-5}}}});
+  const ProcessResult free_run = batch(dir, bench, "estimate.yaml");
+  ASSERT_EQ(free_run.exit_code, 0) << free_run.err << free_run.out;
+  const json s = batch_summary(free_run);
+  ASSERT_TRUE(s.contains("refined")) << s.dump();
+  ASSERT_TRUE(s["refined"].contains("nuisance")) << s["refined"].dump();
+  const json& x_zero = s["refined"]["nuisance"]["x_zero"];
+  EXPECT_TRUE(x_zero["estimated"].get<bool>()) << x_zero.dump();
+  EXPECT_NEAR(x_zero["value"].get<double>(), 2e-5, 1e-6) << x_zero.dump();
+
+  json held_cfg = bench;
+  held_cfg["refine"]["nuisance"] = {{"x_zero", 2e-5}};
+  const ProcessResult held_run = batch(dir, held_cfg, "held.yaml");
+  ASSERT_EQ(held_run.exit_code, 0) << held_run.err << held_run.out;
+  const json h = batch_summary(held_run);
+  ASSERT_TRUE(h.contains("refined")) << h.dump();
+  ASSERT_TRUE(h["refined"].contains("nuisance")) << h["refined"].dump();
+  const json& held = h["refined"]["nuisance"]["x_zero"];
+  EXPECT_FALSE(held["estimated"].get<bool>()) << held.dump();
+  EXPECT_DOUBLE_EQ(held["value"].get<double>(), 2e-5) << held.dump();
+}
+
 // Every new key is range-checked and a mistake names the key.
 TEST(Validation, ConfigErrorsNameTheKey) {
   TempDir dir;
@@ -99,6 +127,38 @@ TEST(Validation, ConfigErrorsNameTheKey) {
     EXPECT_NE(r.exit_code, 0) << key;
     EXPECT_TRUE(contains(r.err + r.out, key)) << key << ": " << r.err << r.out;
   }
+}
+
+// The terms the fit does not estimate yet are refused, naming the key, rather than accepted and
+// ignored; their off / 0 settings load.
+TEST(Validation, UnfittedTermsAreRefusedNamingTheKey) {
+  TempDir dir;
+  const std::pair<json, std::string> cases[] = {
+      {{{"refine", {{"nuisance", {{"sensor_lag", "estimate"}}}}}}, "refine.nuisance.sensor_lag"},
+      {{{"refine", {{"nuisance", {{"sensor_lag", 0.3}}}}}}, "refine.nuisance.sensor_lag"},
+      {{{"refine", {{"extensions", {{"resistance_tempco", "on"}}}}}},
+       "refine.extensions.resistance_tempco"},
+      {{{"refine", {{"extensions", {{"stiffness_softening", "auto"}}}}}},
+       "refine.extensions.stiffness_softening"},
+      {{{"refine", {{"extensions", {{"cooling_tempco", "on"}}}}}},
+       "refine.extensions.cooling_tempco"},
+  };
+  for (const auto& [bad, key] : cases) {
+    write_config(dir.file("bad.yaml"), merge_config(base_config(dir.path()), bad));
+    const ProcessResult r =
+        run_process({estimatord_path(), "--check-config", dir.file("bad.yaml")}, Seconds(30));
+    EXPECT_NE(r.exit_code, 0) << key;
+    EXPECT_TRUE(contains(r.err + r.out, key)) << key << ": " << r.err << r.out;
+    EXPECT_TRUE(contains(r.err + r.out, "not implemented yet")) << key << ": " << r.err << r.out;
+  }
+  write_config(
+      dir.file("off.yaml"),
+      merge_config(base_config(dir.path()), {{"refine",
+                                              {{"nuisance", {{"sensor_lag", 0}}},
+                                               {"extensions", {{"resistance_tempco", "off"}}}}}}));
+  const ProcessResult ok =
+      run_process({estimatord_path(), "--check-config", dir.file("off.yaml")}, Seconds(30));
+  EXPECT_EQ(ok.exit_code, 0) << ok.err << ok.out;
 }
 
 }  // namespace

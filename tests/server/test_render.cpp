@@ -7,6 +7,7 @@
 
 #include "daemon/outputs/metrics/exposition.hpp"
 #include "daemon/outputs/server/render.hpp"
+#include "daemon/outputs/server/render_health.hpp"
 #include "tests/server/server_fixture.hpp"
 
 namespace scp::daemon::server {
@@ -363,6 +364,36 @@ TEST(Render, StatusLatenessFromTheFineHistogram) {
   const json coarse = json::parse(render_status(s, ServerInfo{"0.1.0", "sim", "", ""}));
   EXPECT_FALSE(coarse["loop"]["lateness_us"].contains("p99_9"));
   EXPECT_FALSE(coarse["loop"].contains("lateness_histogram_ns"));
+}
+
+// The health object follows the protocol's rule: a member with no value is omitted, never null
+// (a change point that names no parameter, a shift or indicator whose value is not finite).
+TEST(Render, HealthOmitsMembersWithNoValue) {
+  const double nan = std::nan("");
+  health::HealthView v;
+  v.baseline_present = true;
+  scp::health::HealthReport& r = v.report;
+  r.has_change = true;
+  r.change.parameter = -1;
+  r.change.onset = nan;
+  r.change.detected_at = 5.0;
+  r.change.parameters[0] = {.tested = true, .delta = nan, .sigma = 1.0, .z = nan, .relative = nan};
+  r.has_window = true;
+  r.baseline_deviation.blocks[0].statistic = nan;
+  r.baseline_deviation.parameters[1] = r.change.parameters[0];
+  r.fast.ratio.fill(nan);
+  r.fast.ratio[5] = 0.5;
+  r.indicators[0] = {.known = true, .value = nan, .sigma = 2.0};
+  const json h = health_json(v, /*full=*/true);
+  EXPECT_EQ(h.dump().find("null"), std::string::npos) << h.dump();
+  EXPECT_FALSE(h["change"].contains("parameter")) << h["change"].dump();
+  EXPECT_FALSE(h["change"].contains("onset")) << h["change"].dump();
+  EXPECT_EQ(h["change"]["detected_at"], 5.0);
+  ASSERT_EQ(h["change"]["parameters"].size(), 1U);
+  EXPECT_EQ(h["change"]["parameters"][0]["sigma"], 1.0);
+  EXPECT_FALSE(h["change"]["parameters"][0].contains("delta"));
+  EXPECT_EQ(h["fast"]["cusum_ratio"].size(), 1U) << h["fast"].dump();
+  EXPECT_FALSE(h["baseline_deviation"]["blocks"]["mechanical"].contains("chi2"));
 }
 
 TEST(Render, StateNames) {

@@ -87,8 +87,10 @@ void HealthRunner::feed(const scp::refine::WindowSample& sample) {
   simulator_->advance(last_sample_, sample, input_delay_);
   last_sample_ = sample;
   const scp::refine::ModelState& s = simulator_->state();
-  const Vector2 residual((sample.x - s.x) * inverse_sigma_[0],
-                         (sample.tbar - s.tbar) * inverse_sigma_[1]);
+  const double x_model = s.x + x_zero_;
+  const double tbar_model = s.tbar + ambient_offset_ + ambient_drift_ * (sample.t - t0_);
+  const Vector2 residual((sample.x - x_model) * inverse_sigma_[0],
+                         (sample.tbar - tbar_model) * inverse_sigma_[1]);
   Matrix26 sensitivity;
   sensitivity.row(0) = simulator_->dx().head<6>().transpose() * inverse_sigma_[0];
   sensitivity.row(1) = simulator_->dtbar().head<6>().transpose() * inverse_sigma_[1];
@@ -106,11 +108,11 @@ void HealthRunner::on_fit(const scp::refine::FitResult& fit,
       fit.converged && fit.theta.allFinite() && fit.covariance.allFinite() && !window.empty();
   if (!usable) return;
   remember_fit(fit);
-  if (!monitor_ && adopt_first_fit_) {
+  if (!monitor_ && adopt_first_fit_ && fit.t_end - fit.t_begin >= adopt_min_span_s_) {
     Baseline first;
     first.window = {fit.t_begin, fit.t_end, fit.theta, fit.covariance};
     first.verdict = view_.fit_verdict.data();
-    set_baseline(first, "the run's first converged window");
+    set_baseline(first, "the run's first converged full window");
     adopt_first_fit_ = false;
   }
   if (monitor_) {
@@ -145,18 +147,19 @@ void HealthRunner::seed(const scp::refine::FitResult& fit,
   const double sx = fit.noise_sigma[0], st = fit.noise_sigma[1];
   if (!(sx > 0.0) || !(st > 0.0) || !std::isfinite(sx) || !std::isfinite(st)) return;
   // The fitted model through its own window, to the state at its last sample.
-  scp::refine::ModelState state{fit.initial_state[0], fit.initial_state[1], fit.initial_state[2]};
-  scp::refine::ThermalCache cache;
-  for (std::size_t i = 1; i < window.size(); ++i) {
-    scp::refine::advance_interval(fit.theta, window[i - 1], window[i], fit.input_delay_s, state,
-                                  cache);
-  }
+  states_.resize(window.size());
+  scp::refine::simulate(window, fit.theta, fit.initial_state, states_, fit.input_delay_s);
+  const scp::refine::ModelState& state = states_.back();
   const scp::health::Reference reference = monitor_->reference_at(window.back().t);
   if (!reference.valid) return;
   simulator_.emplace(reference.theta, scp::refine::InitialState(state.x, state.xdot, state.tbar));
   generation_ = reference.generation;
   last_sample_ = window.back();
   input_delay_ = fit.input_delay_s;
+  x_zero_ = fit.nuisance.x_zero.value;
+  ambient_offset_ = fit.nuisance.ambient_offset.value;
+  ambient_drift_ = fit.nuisance.ambient_drift.value;
+  t0_ = window.front().t;
   inverse_sigma_ = Vector2(1.0 / sx, 1.0 / st);
   ++view_.reseeds;
 }

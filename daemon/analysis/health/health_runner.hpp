@@ -17,6 +17,7 @@
 #include "daemon/analysis/health/health_view.hpp"
 #include "daemon/analysis/refine/refiner.hpp"
 #include "health/monitor.hpp"
+#include "refine/model_simulator.hpp"
 #include "refine/sensitivities.hpp"
 
 namespace scp::daemon::health {
@@ -27,9 +28,14 @@ class HealthRunner final : public refine::FitObserver {
 
   // A new baseline (or none: the monitor stops, the state is blind). Restarts the monitor.
   void set_baseline(const std::optional<Baseline>& baseline, const std::string& source);
-  // Without a baseline, the next converged fit becomes it (a batch run with no baseline file:
-  // changes are then found against the run's own start).
-  void adopt_first_fit() noexcept { adopt_first_fit_ = true; }
+  // Without a baseline, the next converged fit of a window spanning at least `min_span_s`
+  // becomes it (a batch run with no baseline file: changes are then found against the run's own
+  // start). A full window, not the first short one: with the nuisance terms free a window shorter
+  // than the thermal time scale leaves θ5, θ6 loose, a baseline that hides later changes.
+  void adopt_first_fit(double min_span_s) noexcept {
+    adopt_first_fit_ = true;
+    adopt_min_span_s_ = min_span_s;
+  }
   // The user has seen the latched state, at loop time t.
   void acknowledge(double t);
 
@@ -51,12 +57,18 @@ class HealthRunner final : public refine::FitObserver {
 
   scp::health::HealthSettings settings_;
   bool adopt_first_fit_ = false;
+  double adopt_min_span_s_ = 0.0;
   std::optional<scp::health::HealthMonitor> monitor_;
   // The residual simulator, seeded at the last converged fit's end.
   std::optional<scp::refine::SensitivitySimulator> simulator_;
   scp::refine::WindowSample last_sample_{};
   std::uint64_t generation_ = 0;
   double input_delay_ = 0.0;
+  // The fit's nuisance terms (refine/fit_terms.hpp): the model's outputs plus x_zero, and
+  // ambient_offset + ambient_drift·(t − t0) with t0 its window's first sample.
+  double x_zero_ = 0.0, ambient_offset_ = 0.0, ambient_drift_ = 0.0, t0_ = 0.0;
+  // The fitted model's states through its window (seed()).
+  std::vector<scp::refine::ModelState> states_;
   scp::health::Vector2 inverse_sigma_ = scp::health::Vector2::Zero();
   HealthView view_{};
 };

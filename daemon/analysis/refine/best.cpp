@@ -17,14 +17,17 @@ namespace {
 const char* remedy(ValidationTest test) noexcept {
   switch (test) {
     case ValidationTest::kSensorLag:
-      return "declare the temperature sensor's lag (refine.nuisance.sensor_lag) or let it be "
-             "estimated";
+      return "the temperature sensor lags the temperature (refine.nuisance.sensor_lag: not fitted "
+             "yet, docs/numerics.md)";
     case ValidationTest::kResistanceTempco:
-      return "enable refine.extensions.resistance_tempco (on or auto)";
+      return "the heater's resistance changes with temperature "
+             "(refine.extensions.resistance_tempco: not fitted yet, docs/numerics.md)";
     case ValidationTest::kStiffnessTempco:
-      return "enable refine.extensions.stiffness_softening (on or auto)";
+      return "the stiffness changes with temperature (refine.extensions.stiffness_softening: not "
+             "fitted yet, docs/numerics.md)";
     case ValidationTest::kCoolingTempco:
-      return "enable refine.extensions.cooling_tempco (on or auto)";
+      return "the cooling changes with temperature (refine.extensions.cooling_tempco: not fitted "
+             "yet, docs/numerics.md)";
     case ValidationTest::kAmbientOffset:
     case ValidationTest::kAmbientDrift:
       return "check the ambient (actuator.ambient_c) and let refine.nuisance.ambient_offset and "
@@ -34,8 +37,8 @@ const char* remedy(ValidationTest test) noexcept {
     case ValidationTest::kIndependenceX:
     case ValidationTest::kIndependenceT:
     case ValidationTest::kThermalResidual:
-      return "the model misses how the output depends on its input: try the extensions on auto, "
-             "check refine.voltage_interval and estimator.voltage_hold";
+      return "the model misses how the output depends on its input: check "
+             "refine.voltage_interval and estimator.voltage_hold";
     default:
       return "the residuals are not the sensors' noise: check sensors.noise";
   }

@@ -7,6 +7,7 @@
 
 #include "daemon/analysis/refine/paper_validation.hpp"
 #include "refine/validate_fit.hpp"
+#include "refine/voltage_timing.hpp"
 
 namespace scp::daemon::refine {
 
@@ -104,6 +105,7 @@ Refiner::Refiner(const config::RefineSettings& settings,
       tolerance_s_(0.5 * period_s),
       fit_(std::move(fit)),
       window_(window_capacity(settings.window_s, period_s)) {
+  prepared_.reserve(window_capacity(settings.window_s, period_s));
   view_.interval_s = settings.interval_s;
 }
 
@@ -181,20 +183,21 @@ Seed Refiner::choose_seed(const PaperEstimate& paper, Vector6& start) const noex
 
 // Issue 28: every fit is validated (the fit's own final pass when it did, one more pass over the
 // window otherwise), and the paper law's θ̂ is tested on the same window, both here on the
-// worker's thread, never the loop's.
-void Refiner::validate(scp::refine::FitResult& r, const PaperEstimate& paper) {
+// worker's thread, never the loop's. `prepared` is the window as the fit read it.
+void Refiner::validate(scp::refine::FitResult& r, const PaperEstimate& paper,
+                       std::span<const scp::refine::WindowSample> prepared) {
   const scp::refine::Vector2 noise{settings_.declared_noise[0], settings_.declared_noise[1]};
   const bool cancelled = cancel_ != nullptr && cancel_->load(std::memory_order_relaxed);
-  if (!r.validated && !cancelled && r.theta.allFinite() && !window_.empty()) {
+  if (!r.validated && !cancelled && r.theta.allFinite() && !prepared.empty()) {
     scp::refine::ValidationSettings vs;
     vs.declared_noise = noise;
-    r.validation = scp::refine::validate_fit(window_.samples(), r, vs, known_);
+    r.validation = scp::refine::validate_fit(prepared, r, vs, known_);
     r.validated = true;
   }
   view_.paper_validated = false;
-  if (!cancelled && usable(paper) && r.initial_state.allFinite() && !window_.empty()) {
-    view_.paper_validation = validate_paper(window_.samples(), to_vector(paper.theta_hat),
-                                            r.initial_state, r.input_delay_s, noise);
+  if (!cancelled && usable(paper) && r.initial_state.allFinite() && !prepared.empty()) {
+    view_.paper_validation = validate_paper(prepared, to_vector(paper.theta_hat), r.initial_state,
+                                            r.input_delay_s, noise);
     view_.paper_validated = true;
   }
 }
@@ -238,7 +241,9 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
       seed = Seed::paper;
     }
   }
-  validate(r, paper);
+  const std::span<const scp::refine::WindowSample> prepared =
+      scp::refine::prepare_window(window_.samples(), voltage_hold_, r.voltage_interval, prepared_);
+  validate(r, paper, prepared);
   const double duration =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
 
@@ -276,7 +281,7 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
       }
     }
   }
-  if (observer_ != nullptr) observer_->on_fit(r, window_.samples(), wall_ns);
+  if (observer_ != nullptr) observer_->on_fit(r, prepared, wall_ns);
   return view_;
 }
 

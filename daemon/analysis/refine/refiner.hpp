@@ -13,6 +13,7 @@
 #include <atomic>
 #include <functional>
 #include <span>
+#include <vector>
 
 #include "daemon/analysis/refine/refined_view.hpp"
 #include "daemon/analysis/refine/sample_window.hpp"
@@ -84,7 +85,8 @@ class Refiner {
 
  private:
   bool window_ready() const noexcept;
-  void validate(scp::refine::FitResult& r, const PaperEstimate& paper);
+  void validate(scp::refine::FitResult& r, const PaperEstimate& paper,
+                std::span<const scp::refine::WindowSample> prepared);
 
   config::RefineSettings settings_;
   Vector6 theta0_;
@@ -96,6 +98,9 @@ class Refiner {
   const std::atomic<bool>* cancel_ = nullptr;
   FitObserver* observer_ = nullptr;
   SampleWindow window_;
+  // The window as the fit read it (refine::prepare_window: the voltage's hold and interval), for
+  // the validations and the observer; reserved to the window's capacity.
+  std::vector<scp::refine::WindowSample> prepared_;
   bool started_ = false;
   std::uint64_t segment_ = 0;
   bool fitted_in_window_ = false;

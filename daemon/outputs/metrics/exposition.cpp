@@ -6,6 +6,8 @@
 #include <string_view>
 
 #include "daemon/core/published_state.hpp"
+#include "health/types.hpp"
+#include "refine/validation.hpp"
 
 namespace scp::daemon::metrics {
 namespace {
@@ -15,6 +17,8 @@ using nlohmann::json;
 // θ's components (docs/numerics.md), as label values.
 constexpr std::array<const char*, 6> kParameters{"b_over_m",      "alpha1_over_m",   "k_over_m",
                                                  "alpha2_over_m", "lambda_over_cth", "inv_r_cth"};
+static_assert(kParameters.size() == scp::health::kParameterNames.size(),
+              "a label value for each of the protocol's parameter names");
 
 std::string number(double value) {
   if (std::isinf(value)) return value > 0 ? "+Inf" : "-Inf";
@@ -214,7 +218,9 @@ void validation_metrics(Writer& w, const json& estimate) {
                       ? &estimate["refined"]["validation"]
                       : &none}};
   if (!sources[0].second->is_object() && !sources[1].second->is_object()) return;
-  constexpr const char* kVerdicts[] = {"adequate", "noise_colored", "structure", "untested"};
+  using scp::refine::Verdict;
+  constexpr Verdict kVerdicts[] = {Verdict::kAdequate, Verdict::kNoiseColored, Verdict::kStructure,
+                                   Verdict::kUntested};
   const auto each_block = [&](auto&& emit) {
     for (const auto& [who, v] : sources) {
       if (!v->is_object()) continue;
@@ -228,9 +234,11 @@ void validation_metrics(Writer& w, const json& estimate) {
            "model validation verdict of the block (docs/validation.md): 1 for the current one");
   each_block([&](const json& b, const std::string& labels) {
     const std::string verdict = b.value("verdict", std::string());
-    for (const char* name : kVerdicts)
+    for (const Verdict each : kVerdicts) {
+      const char* name = scp::refine::verdict_name(each);
       w.sample("scp_estimator_validation_verdict", verdict == name ? 1 : 0,
                labels + ",verdict=\"" + name + "\"");
+    }
   });
   w.family("scp_estimator_validation_fit_percent", "gauge",
            "NRMSE fit % of the simulated model per block (MATLAB compare)");
@@ -290,10 +298,9 @@ void estimate_metrics(Writer& w, const json& estimate) {
 
 // The protocol's parameter names (health/types.hpp) to this exposition's label values.
 std::string parameter_label(const std::string& protocol_name) {
-  constexpr std::array<const char*, 6> kProtocol{"b/m",  "a1/m",  "k/m",
-                                                 "a2/m", "l/Cth", "1/(R Cth)"};
-  for (std::size_t i = 0; i < kProtocol.size(); ++i)
-    if (protocol_name == kProtocol[i]) return std::string("parameter=\"") + kParameters[i] + "\"";
+  const auto& protocol = scp::health::kParameterNames;
+  for (std::size_t i = 0; i < protocol.size(); ++i)
+    if (protocol_name == protocol[i]) return std::string("parameter=\"") + kParameters[i] + "\"";
   return "parameter=\"" + label_value(protocol_name) + "\"";
 }
 

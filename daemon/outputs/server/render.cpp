@@ -11,6 +11,11 @@
 #include "daemon/outputs/server/render_health.hpp"
 
 namespace scp::daemon::server {
+
+void put_finite(nlohmann::json& object, const char* key, double value) {
+  if (std::isfinite(value)) object[key] = value;
+}
+
 namespace {
 
 using nlohmann::json;
@@ -23,11 +28,6 @@ std::string line(const json& object) {
 
 std::string_view fixed_text(const std::array<char, kReasonChars>& text) noexcept {
   return {text.data(), strnlen(text.data(), text.size())};
-}
-
-// Members with no value are omitted (protocol rule); a non-finite number has no JSON form.
-void put_finite(json& object, const char* key, double value) {
-  if (std::isfinite(value)) object[key] = value;
 }
 
 // Inside fixed-length arrays the index carries meaning, so a non-finite element becomes null.

@@ -46,6 +46,10 @@ std::string render_estimate(const EstimateView& estimate,
 nlohmann::json estimate_json(const EstimateView& estimate, const refine::RefinedView* refined,
                              double now_t, const health::HealthView* health = nullptr);
 
+// Members with no value are omitted (the protocol's rule): `key` only when `value` is finite (a
+// non-finite number has no JSON form).
+void put_finite(nlohmann::json& object, const char* key, double value);
+
 // "2026-11-23T08:30:00.123Z"
 std::string utc_time(std::int64_t unix_ns);
 // "utc" (ISO 8601, ms) and "unix_ns" (CLOCK_REALTIME, ns): omitted while unix_ns is 0.

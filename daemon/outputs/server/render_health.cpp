@@ -13,26 +13,20 @@ using scp::health::kBlockNames;
 using scp::health::kParameterNames;
 using scp::health::kParams;
 
-// A finite number, or null (JSON has no NaN).
-json number(double value) {
-  return std::isfinite(value) ? json(value) : json(nullptr);
-}
-
 json shift_json(int i, const scp::health::ParameterShift& p) {
-  return {{"parameter", kParameterNames[static_cast<std::size_t>(i)]},
-          {"delta", number(p.delta)},
-          {"sigma", number(p.sigma)},
-          {"z", number(p.z)},
-          {"relative", number(p.relative)}};
+  json out = {{"parameter", kParameterNames[static_cast<std::size_t>(i)]}};
+  put_finite(out, "delta", p.delta);
+  put_finite(out, "sigma", p.sigma);
+  put_finite(out, "z", p.z);
+  put_finite(out, "relative", p.relative);
+  return out;
 }
 
 json change_json(const scp::health::ChangePoint& c, bool full) {
-  json out = {
-      {"onset", c.onset},
-      {"detected_at", c.detected_at},
-      {"detector", scp::health::detector_name(c.detector)},
-      {"parameter", c.parameter >= 0 ? json(kParameterNames[static_cast<std::size_t>(c.parameter)])
-                                     : json(nullptr)}};
+  json out = {{"detector", scp::health::detector_name(c.detector)}};
+  put_finite(out, "onset", c.onset);
+  put_finite(out, "detected_at", c.detected_at);
+  if (c.parameter >= 0) out["parameter"] = kParameterNames[static_cast<std::size_t>(c.parameter)];
   json parameters = json::array();
   for (int i = 0; i < kParams; ++i) {
     const auto& p = c.parameters[static_cast<std::size_t>(i)];
@@ -50,11 +44,12 @@ json drift_json(const scp::health::DriftReport& d, bool full) {
   for (int i = 0; i < kParams; ++i) {
     const auto& p = d.parameters[static_cast<std::size_t>(i)];
     if (!p.tested || (!full && !p.drifting)) continue;
-    parameters.push_back({{"parameter", kParameterNames[static_cast<std::size_t>(i)]},
-                          {"per_hour", number(p.per_hour)},
-                          {"sigma_per_hour", number(p.sigma_per_hour)},
-                          {"relative_per_hour", number(p.relative_per_hour)},
-                          {"drifting", p.drifting}});
+    json item = {{"parameter", kParameterNames[static_cast<std::size_t>(i)]},
+                 {"drifting", p.drifting}};
+    put_finite(item, "per_hour", p.per_hour);
+    put_finite(item, "sigma_per_hour", p.sigma_per_hour);
+    put_finite(item, "relative_per_hour", p.relative_per_hour);
+    parameters.push_back(std::move(item));
   }
   out["parameters"] = std::move(parameters);
   return out;
@@ -64,10 +59,10 @@ json wald_json(const scp::health::WaldResult& w) {
   json blocks = json::object();
   for (int b = 0; b < scp::health::kBlocks; ++b) {
     const auto& block = w.blocks[static_cast<std::size_t>(b)];
-    blocks[kBlockNames[static_cast<std::size_t>(b)]] = {{"chi2", number(block.statistic)},
-                                                        {"threshold", number(block.threshold)},
-                                                        {"dof", block.dof},
-                                                        {"significant", block.significant}};
+    json item = {{"dof", block.dof}, {"significant", block.significant}};
+    put_finite(item, "chi2", block.statistic);
+    put_finite(item, "threshold", block.threshold);
+    blocks[kBlockNames[static_cast<std::size_t>(b)]] = std::move(item);
   }
   json parameters = json::array();
   for (int i = 0; i < kParams; ++i) {
@@ -82,8 +77,10 @@ json indicators_json(const scp::health::Indicators& indicators) {
   for (int i = 0; i < scp::health::kIndicators; ++i) {
     const auto& v = indicators[static_cast<std::size_t>(i)];
     if (!v.known) continue;
-    out[scp::health::kIndicatorNames[static_cast<std::size_t>(i)]] = {{"value", number(v.value)},
-                                                                      {"sigma", number(v.sigma)}};
+    json item = json::object();
+    put_finite(item, "value", v.value);
+    put_finite(item, "sigma", v.sigma);
+    out[scp::health::kIndicatorNames[static_cast<std::size_t>(i)]] = std::move(item);
   }
   return out;
 }
@@ -91,8 +88,8 @@ json indicators_json(const scp::health::Indicators& indicators) {
 json fast_json(const scp::health::FastReport& f) {
   json ratio = json::object();
   for (int i = 0; i < kParams; ++i)
-    ratio[kParameterNames[static_cast<std::size_t>(i)]] =
-        number(f.ratio[static_cast<std::size_t>(i)]);
+    put_finite(ratio, kParameterNames[static_cast<std::size_t>(i)],
+               f.ratio[static_cast<std::size_t>(i)]);
   return {{"active", f.active}, {"blocks", f.blocks}, {"cusum_ratio", std::move(ratio)}};
 }
 

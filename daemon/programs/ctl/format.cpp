@@ -4,26 +4,26 @@
 #include <cstdio>
 
 namespace scp::daemon::ctl {
-namespace {
 
-using nlohmann::json;
-
-constexpr std::array<const char*, 6> kThetaNames{"b/m",      "alpha1/m",   "k/m",
-                                                 "alpha2/m", "lambda/Cth", "1/(R*Cth)"};
-
-// The daemon omits members it has no value for and sends null array elements: print "-".
-std::string number(const json& value, const char* format = "%.6g") {
+std::string number(const nlohmann::json& value, const char* format) {
   if (!value.is_number()) return "-";
   char text[64];
   std::snprintf(text, sizeof(text), format, value.get<double>());
   return text;
 }
 
-std::string member(const json& object, const char* key, const char* format = "%.6g") {
+std::string member(const nlohmann::json& object, const char* key, const char* format) {
   if (!object.is_object()) return "-";
   const auto it = object.find(key);
   return it == object.end() ? "-" : number(*it, format);
 }
+
+namespace {
+
+using nlohmann::json;
+
+constexpr std::array<const char*, 6> kThetaNames{"b/m",      "alpha1/m",   "k/m",
+                                                 "alpha2/m", "lambda/Cth", "1/(R*Cth)"};
 
 std::string element(const json& array, std::size_t i, const char* format = "%.6g") {
   if (!array.is_array() || i >= array.size()) return "-";

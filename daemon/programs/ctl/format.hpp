@@ -7,6 +7,10 @@
 
 namespace scp::daemon::ctl {
 
+// The daemon omits members it has no value for and sends null array elements: these print "-".
+std::string number(const nlohmann::json& value, const char* format = "%.6g");
+std::string member(const nlohmann::json& object, const char* key, const char* format = "%.6g");
+
 std::string format_status(const nlohmann::json& status);
 // A table: parameter, θ̂, σ, and θ / rel. error when present; physical parameters when present.
 std::string format_estimate(const nlohmann::json& estimate);

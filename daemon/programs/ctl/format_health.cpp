@@ -1,6 +1,5 @@
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <string>
 
 #include "daemon/programs/ctl/format.hpp"
@@ -10,30 +9,22 @@ namespace {
 
 using nlohmann::json;
 
-std::string fixed(const json& value, const char* format) {
-  if (!value.is_number()) return "-";
-  char text[64];
-  std::snprintf(text, sizeof(text), format, value.get<double>());
-  return text;
-}
-
 std::string shift_line(const json& p) {
   const double relative = p.value("relative", 0.0);
   const double delta = p.value("delta", 0.0);
   const double reference = relative != 0.0 ? delta / relative : 0.0;
-  const json sigma_relative = reference != 0.0 && p["sigma"].is_number()
-                                  ? json(p["sigma"].get<double>() / std::abs(reference))
-                                  : json(nullptr);
+  const auto sigma = p.find("sigma");
+  const json sigma_percent = reference != 0.0 && sigma != p.end() && sigma->is_number()
+                                 ? json(100.0 * sigma->get<double>() / std::abs(reference))
+                                 : json();
   return "  " + p.value("parameter", std::string("?")) + "  " +
-         fixed(json(100.0 * relative), "%+.1f %%") + "  (σ " +
-         fixed(sigma_relative.is_number() ? json(100.0 * sigma_relative.get<double>()) : json(),
-               "%.1f %%") +
-         ", z " + fixed(p["z"], "%.1f") + ")\n";
+         number(json(100.0 * relative), "%+.1f %%") + "  (σ " + number(sigma_percent, "%.1f %%") +
+         ", z " + member(p, "z", "%.1f") + ")\n";
 }
 
 std::string change_text(const json& change) {
-  std::string out = "change found at " + fixed(change["detected_at"], "%.1f") + " s, onset " +
-                    fixed(change["onset"], "%.1f") + " s, by the " +
+  std::string out = "change found at " + member(change, "detected_at", "%.1f") + " s, onset " +
+                    member(change, "onset", "%.1f") + " s, by the " +
                     change.value("detector", std::string("?")) + " detector:\n";
   for (const json& p : change.value("parameters", json::array())) out += shift_line(p);
   return out;
@@ -44,7 +35,7 @@ std::string drift_text(const json& drift) {
   for (const json& p : drift.value("parameters", json::array())) {
     if (!p.value("drifting", false)) continue;
     out += "  " + p.value("parameter", std::string("?")) + "  " +
-           fixed(json(100.0 * p.value("relative_per_hour", 0.0)), "%+.2f %%/h") + "\n";
+           number(json(100.0 * p.value("relative_per_hour", 0.0)), "%+.2f %%/h") + "\n";
   }
   return out.empty() ? out : "drifting:\n" + out;
 }
@@ -52,8 +43,8 @@ std::string drift_text(const json& drift) {
 std::string deviation_text(const json& deviation) {
   std::string out = "latest window against the baseline:\n";
   for (const auto& [name, block] : deviation.value("blocks", json::object()).items()) {
-    out += "  " + name + "  χ² " + fixed(block["chi2"], "%.1f") + " (threshold " +
-           fixed(block["threshold"], "%.1f") + ")\n";
+    out += "  " + name + "  χ² " + member(block, "chi2", "%.1f") + " (threshold " +
+           member(block, "threshold", "%.1f") + ")\n";
   }
   for (const json& p : deviation.value("parameters", json::array())) out += shift_line(p);
   return out;
@@ -64,7 +55,7 @@ std::string deviation_text(const json& deviation) {
 std::string format_health(const json& health) {
   const std::string state = health.value("state", std::string("-"));
   if (state == "blind") return "state: blind (" + health.value("reason", std::string()) + ")\n";
-  std::string out = "state: " + state + " since " + fixed(health["since"], "%.1f") +
+  std::string out = "state: " + state + " since " + member(health, "since", "%.1f") +
                     " s (changes " + std::to_string(health.value("changes", 0)) + ", drifts " +
                     std::to_string(health.value("drifts", 0)) + ")\n";
   if (health.contains("change")) out += change_text(health["change"]);
@@ -79,15 +70,15 @@ std::string format_baseline(const json& baseline) {
   std::string out = "baseline " + baseline.value("file", std::string()) + "\n  actuator " +
                     baseline.value("actuator", std::string("-")) + ", validation " +
                     baseline.value("verdict", std::string("-")) + ", window [" +
-                    fixed(baseline["t_begin"], "%.1f") + ", " + fixed(baseline["t_end"], "%.1f") +
+                    member(baseline, "t_begin", "%.1f") + ", " + member(baseline, "t_end", "%.1f") +
                     "] s\n";
   const json theta = baseline.value("theta", json::array());
   const json cov = baseline.value("covariance", json::array());
   for (std::size_t i = 0; i < theta.size() && i < 6; ++i) {
     const json variance = cov.size() == 36 ? cov[7 * i] : json();
-    out += "  θ" + std::to_string(i + 1) + "  " + fixed(theta[i], "%.6g") + "  σ " +
+    out += "  θ" + std::to_string(i + 1) + "  " + number(theta[i], "%.6g") + "  σ " +
            (variance.is_number()
-                ? fixed(json(std::sqrt(std::max(0.0, variance.get<double>()))), "%.3g")
+                ? number(json(std::sqrt(std::max(0.0, variance.get<double>()))), "%.3g")
                 : std::string("-")) +
            "\n";
   }

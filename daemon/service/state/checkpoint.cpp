@@ -77,21 +77,31 @@ std::string directory_of(const std::string& path) {
   return path.substr(0, slash);
 }
 
-[[noreturn]] void fail_write(const std::string& path, const std::string& what, int err) {
-  throw std::runtime_error("cannot save checkpoint " + path + ": " + what + ": " + errno_text(err) +
-                           (err == ENOSPC ? " — free space on that file system" : "") +
-                           (err == EACCES || err == EROFS
-                                ? " — check that state.path lies in a writable directory "
-                                  "(the unit's StateDirectory=)"
-                                : ""));
+// What a state file is, in messages: "checkpoint" or "baseline", and the key that names where it
+// lies ("state.path").
+struct FileRole {
+  std::string_view what;
+  std::string_view key;
+};
+constexpr FileRole kCheckpoint{"checkpoint", "state.path"};
+
+[[noreturn]] void fail_write(const std::string& path, const FileRole& role, const std::string& step,
+                             int err) {
+  throw std::runtime_error(
+      "cannot save " + std::string(role.what) + " " + path + ": " + step + ": " + errno_text(err) +
+      (err == ENOSPC ? " — free space on that file system" : "") +
+      (err == EACCES || err == EROFS ? " — check that " + std::string(role.key) +
+                                           " lies in a writable directory (the unit's "
+                                           "StateDirectory=)"
+                                     : std::string()));
 }
 
-void write_atomically(const std::string& path, const std::string& data) {
+void write_atomically(const std::string& path, const std::string& data, const FileRole& role) {
   const std::string tmp = path + ".tmp." + std::to_string(getpid());
   // Any failure after the temporary exists removes it before reporting.
-  auto fail = [&](const std::string& what, int err) {
+  auto fail = [&](const std::string& step, int err) {
     ::unlink(tmp.c_str());
-    fail_write(path, what, err);
+    fail_write(path, role, step, err);
   };
   {
     // O_EXCL | O_NOFOLLOW: never write through a name someone else prepared (a symlink planted
@@ -107,14 +117,15 @@ void write_atomically(const std::string& path, const std::string& data) {
         ::unlink(tmp.c_str());
         raw = ::open(tmp.c_str(), kFlags, 0640);
       } else {
-        throw std::runtime_error("refusing to save checkpoint " + path + ": " + tmp +
+        throw std::runtime_error("refusing to save " + std::string(role.what) + " " + path + ": " +
+                                 tmp +
                                  " already exists and is not a file of ours (a symlink, FIFO or "
                                  "another user's file planted there?); remove it and check who "
                                  "can write to the state directory");
       }
     }
     Fd fd(raw);
-    if (fd.get() < 0) fail_write(path, "cannot create " + tmp, errno);
+    if (fd.get() < 0) fail_write(path, role, "cannot create " + tmp, errno);
     std::size_t done = 0;
     while (done < data.size()) {
       const ssize_t n = ::write(fd.get(), data.data() + done, data.size() - done);
@@ -132,8 +143,9 @@ void write_atomically(const std::string& path, const std::string& data) {
   // fsync the directory so the rename itself survives a power cut.
   const std::string dir = directory_of(path);
   Fd dfd(::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
-  if (dfd.get() < 0) fail_write(path, "cannot open directory " + dir + " to fsync it", errno);
-  if (::fsync(dfd.get()) != 0) fail_write(path, "fsync of directory " + dir + " failed", errno);
+  if (dfd.get() < 0) fail_write(path, role, "cannot open directory " + dir + " to fsync it", errno);
+  if (::fsync(dfd.get()) != 0)
+    fail_write(path, role, "fsync of directory " + dir + " failed", errno);
 }
 
 // A crash between creating path.tmp.<pid> and the rename leaves that file behind; remove those of
@@ -159,24 +171,26 @@ void remove_stale_temporaries(const std::string& path) {
 }
 
 // Reads the whole file; on failure returns false with a reason.
-bool read_file(const std::string& path, std::string& out, std::string& reason) {
-  // O_NONBLOCK: opening a FIFO planted under the checkpoint's name must not hang start-up;
+bool read_file(const std::string& path, std::string& out, std::string& reason,
+               const FileRole& role) {
+  const std::string what(role.what);
+  // O_NONBLOCK: opening a FIFO planted under the file's name must not hang start-up;
   // O_NOFOLLOW: a symlink is not ours to follow. Only a regular file is then read.
   Fd fd(::open(path.c_str(), O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC));
   if (fd.get() < 0) {
     const int err = errno;
-    reason = err == ENOENT  ? "no checkpoint at " + path
-             : err == ELOOP ? "refusing checkpoint " + path + ": it is a symbolic link"
+    reason = err == ENOENT  ? "no " + what + " at " + path
+             : err == ELOOP ? "refusing " + what + " " + path + ": it is a symbolic link"
                             : "cannot open " + path + ": " + errno_text(err);
     return false;
   }
   struct stat st {};
   if (::fstat(fd.get(), &st) != 0 || !S_ISREG(st.st_mode)) {
-    reason = "refusing checkpoint " + path + ": not a regular file (a FIFO, device or directory)";
+    reason = "refusing " + what + " " + path + ": not a regular file (a FIFO, device or directory)";
     return false;
   }
   if (st.st_uid != ::geteuid() && st.st_uid != 0) {
-    reason = "refusing checkpoint " + path + ": owned by uid " + std::to_string(st.st_uid) +
+    reason = "refusing " + what + " " + path + ": owned by uid " + std::to_string(st.st_uid) +
              ", not by this daemon's user or root";
     return false;
   }
@@ -191,8 +205,7 @@ bool read_file(const std::string& path, std::string& out, std::string& reason) {
     if (n == 0) break;
     out.append(buf, static_cast<std::size_t>(n));
     if (out.size() > kMaxFileBytes) {
-      reason =
-          path + " is larger than " + std::to_string(kMaxFileBytes) + " bytes; not a checkpoint";
+      reason = path + " is larger than " + std::to_string(kMaxFileBytes) + " bytes; not a " + what;
       return false;
     }
   }
@@ -318,13 +331,15 @@ std::optional<Checkpoint> parse(const std::string& text, std::string& reason) {
 
 }  // namespace
 
-void write_state_file(const std::string& path, const std::string& data) {
-  write_atomically(path, data);
+void write_state_file(const std::string& path, const std::string& data, std::string_view what,
+                      std::string_view key) {
+  write_atomically(path, data, FileRole{what, key});
   remove_stale_temporaries(path);
 }
 
-bool read_state_file(const std::string& path, std::string& out, std::string& reason) {
-  return read_file(path, out, reason);
+bool read_state_file(const std::string& path, std::string& out, std::string& reason,
+                     std::string_view what, std::string_view key) {
+  return read_file(path, out, reason, FileRole{what, key});
 }
 
 std::uint64_t fnv1a64(std::string_view data) noexcept {
@@ -358,7 +373,7 @@ void save_checkpoint(const std::string& path, const Checkpoint& c) {
   };
   j["checksum"] = checksum_of(j);
   // Invalid UTF-8 in the driver name is replaced rather than thrown on.
-  write_atomically(path, j.dump(2, ' ', false, json::error_handler_t::replace) + "\n");
+  write_atomically(path, j.dump(2, ' ', false, json::error_handler_t::replace) + "\n", kCheckpoint);
   remove_stale_temporaries(path);
 }
 
@@ -366,7 +381,7 @@ std::optional<Checkpoint> load_checkpoint(const std::string& path, std::string& 
   warning.clear();
   std::string text;
   std::string reason;
-  if (!read_file(path, text, reason)) {
+  if (!read_file(path, text, reason, kCheckpoint)) {
     warning = reason + "; starting cold";
     return std::nullopt;
   }

@@ -51,9 +51,12 @@ std::optional<Checkpoint> load_checkpoint(const std::string& path, std::string& 
 
 // The same atomic write and guarded read for the other small state files (the health baseline):
 // write_state_file throws std::runtime_error naming the path; read_state_file returns false with
-// `reason` (missing, not a regular file, not ours, too large).
-void write_state_file(const std::string& path, const std::string& data);
-bool read_state_file(const std::string& path, std::string& out, std::string& reason);
+// `reason` (missing, not a regular file, not ours, too large). The messages call the file `what`
+// ("baseline") and name `key`, the configuration key that says where it lies.
+void write_state_file(const std::string& path, const std::string& data, std::string_view what,
+                      std::string_view key);
+bool read_state_file(const std::string& path, std::string& out, std::string& reason,
+                     std::string_view what, std::string_view key);
 
 // FNV-1a, 64 bit (exposed for tests).
 std::uint64_t fnv1a64(std::string_view data) noexcept;
