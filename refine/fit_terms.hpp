@@ -29,11 +29,10 @@ inline constexpr NameTable<VoltageInterval, 3> kVoltageIntervalNames{
      {VoltageInterval::estimate, "estimate"}}};
 const char* to_text(VoltageInterval interval) noexcept;  // kVoltageIntervalNames
 
-// One nuisance term: estimated, or held at `value` (its units: FitSettings). Held at 0 by
-// default for now (the paper's model): estimated by default, the three output terms broke three
-// link-timing tests of 60-120 s windows (a 60 s window of the paper's experiment loses 3.2× on
-// θ1..θ4's Cramér–Rao bound with all three free, 1.01× at 300 s; docs/numerics.md), which is
-// for the lead to decide; the daemon sets each from its configuration.
+// One nuisance term: estimated, or held at `value` (its units: FitSettings). The library's
+// default holds it at 0 (the paper's model); the daemon estimates the three output terms unless
+// its configuration holds them (refine.nuisance.*). What freeing them costs a short window is in
+// docs/numerics.md.
 struct NuisanceSetting {
   bool fixed = true;
   double value = 0.0;

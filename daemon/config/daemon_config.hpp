@@ -58,18 +58,14 @@ constexpr const char* to_string(ExcitationProfile v) noexcept {
   return name_of(kExcitationProfiles, v);
 }
 // Which interval a row's voltage belongs to (refine/fit_terms.hpp); automatic: `before` (the
-// daemon's own drivers and recordings), `estimate` for a --replay of a file without V_since.
+// daemon's own drivers and recordings), `estimate` for a replayed file without V_since
+// (resolve_voltage_interval).
 enum class VoltageIntervalChoice : std::uint8_t { automatic, before, after, estimate };
 inline constexpr NameTable<VoltageIntervalChoice, 4> kVoltageIntervals{
     {{VoltageIntervalChoice::automatic, "auto"},
      {VoltageIntervalChoice::before, "before"},
      {VoltageIntervalChoice::after, "after"},
      {VoltageIntervalChoice::estimate, "estimate"}}};
-
-inline constexpr NameTable<scp::refine::ExtensionMode, 3> kExtensionModes{
-    {{scp::refine::ExtensionMode::off, "off"},
-     {scp::refine::ExtensionMode::on, "on"},
-     {scp::refine::ExtensionMode::automatic, "auto"}}};
 
 constexpr const char* to_string(LinkTiming v) noexcept {
   return name_of(kLinkTimings, v);

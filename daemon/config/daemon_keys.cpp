@@ -396,7 +396,7 @@ void declare_unfitted_terms(Binder& refine, Binder& nuisance, RefineSettings& ou
        "coefficient)",
        "λ = λ0·(1 + γT̄): the cooling −θ5·(1 + γT̄)·T̄"}};
   for (const auto& [key, mode, what, doc] : exts) {
-    ext.choice(key, *mode, scp::refine::ExtensionMode::off, kExtensionModes, doc);
+    ext.choice(key, *mode, scp::refine::ExtensionMode::off, scp::refine::kExtensionModeNames, doc);
     if (*mode != scp::refine::ExtensionMode::off) refuse(ext, key, what);
   }
 }

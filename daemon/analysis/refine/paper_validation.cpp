@@ -10,16 +10,11 @@ using namespace scp::refine;
 ValidationReport validate_paper(std::span<const WindowSample> window, const Vector6& theta,
                                 const InitialState& initial, double input_delay,
                                 const Vector2& declared_noise) {
-  ValidationSettings settings;
-  settings.declared_noise = declared_noise;
-  settings.jacobian_columns = 0;
+  ValidationSettings base;
+  base.declared_noise = declared_noise;
+  // A prediction: no sensitivities to project off (validation_settings with no free slots).
+  const ValidationSettings settings = validation_settings(window, theta, std::nullopt, base);
   if (window.empty()) return ResidualValidator(theta, settings).finish();
-  double mean_tbar = 0.0;
-  for (const WindowSample& w : window) mean_tbar += w.tbar;
-  mean_tbar /= static_cast<double>(window.size());
-  const ModelTimeConstants tc = model_time_constants(theta, mean_tbar);
-  settings.mechanical_time_constant_s = tc.mechanical_s;
-  settings.thermal_time_constant_s = tc.thermal_s;
   ResidualValidator validator(theta, settings);
   ModelState state{initial[0], initial[1], initial[2]};
   ThermalCache cache;
