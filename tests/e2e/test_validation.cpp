@@ -3,6 +3,7 @@
 // real one is (driver.sim.tempco, .ambient, .sensor). Offline batch runs: deterministic.
 
 #include <cstdio>
+#include <filesystem>
 
 #include "tests/e2e/e2e_util.hpp"
 
@@ -133,6 +134,8 @@ TEST(Validation, ConfigErrorsNameTheKey) {
 // ignored; their off / 0 settings load.
 TEST(Validation, UnfittedTermsAreRefusedNamingTheKey) {
   TempDir dir;
+  // --check-config also checks that the state directory exists: only the key under test is bad.
+  std::filesystem::create_directories(dir.path() + "/state");
   const std::pair<json, std::string> cases[] = {
       {{{"refine", {{"nuisance", {{"sensor_lag", "estimate"}}}}}}, "refine.nuisance.sensor_lag"},
       {{{"refine", {{"nuisance", {{"sensor_lag", 0.3}}}}}}, "refine.nuisance.sensor_lag"},
