@@ -47,6 +47,25 @@ void BM_Fit300s(benchmark::State& state) {
 }
 BENCHMARK(BM_Fit300s)->Unit(benchmark::kMillisecond)->Iterations(3);
 
+// The same with the displacement zero, the ambient's offset and its drift estimated beside θ, as
+// the daemon fits by default (refine.nuisance.*: estimate).
+void BM_Fit300sNuisance(benchmark::State& state) {
+  const auto& w = window();
+  FitSettings settings;
+  for (NuisanceSetting* term : {&settings.nuisance.x_zero, &settings.nuisance.ambient_offset,
+                                &settings.nuisance.ambient_drift})
+    term->fixed = false;
+  FitResult r;
+  for (auto _ : state) {
+    r = fit(w, biased_start(), settings);
+    benchmark::DoNotOptimize(r);
+  }
+  state.counters["converged"] = r.converged ? 1 : 0;
+  state.counters["iterations"] = r.iterations;
+  state.counters["theta1_rel_err"] = r.theta[0] / truth()[0] - 1.0;
+}
+BENCHMARK(BM_Fit300sNuisance)->Unit(benchmark::kMillisecond)->Iterations(3);
+
 // The fit's cost grows with the stiffness (the simulation's sub-steps follow the fastest pole):
 // light-stiff (ωn = 141 rad/s against the paper's 1.8, config/actuators/light-stiff.yaml) on its
 // own excitation, 300 s at 1 kHz with N1 noise, from the paper law's collapsed estimate on that
