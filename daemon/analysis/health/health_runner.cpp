@@ -147,9 +147,14 @@ void HealthRunner::seed(const scp::refine::FitResult& fit,
   const double sx = fit.noise_sigma[0], st = fit.noise_sigma[1];
   if (!(sx > 0.0) || !(st > 0.0) || !std::isfinite(sx) || !std::isfinite(st)) return;
   // The fitted model through its own window, to the state at its last sample.
-  states_.resize(window.size());
-  scp::refine::simulate(window, fit.theta, fit.initial_state, states_, fit.input_delay_s);
-  const scp::refine::ModelState& state = states_.back();
+  // Stepped, not refine::simulate: only the last state is wanted, and a state per sample of a
+  // 300 s window would be 7 MB of locked memory.
+  scp::refine::ModelState state{fit.initial_state[0], fit.initial_state[1], fit.initial_state[2]};
+  scp::refine::ThermalCache cache;
+  for (std::size_t i = 1; i < window.size(); ++i) {
+    scp::refine::advance_interval(fit.theta, window[i - 1], window[i], fit.input_delay_s, state,
+                                  cache);
+  }
   const scp::health::Reference reference = monitor_->reference_at(window.back().t);
   if (!reference.valid) return;
   simulator_.emplace(reference.theta, scp::refine::InitialState(state.x, state.xdot, state.tbar));

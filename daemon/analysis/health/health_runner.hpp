@@ -67,8 +67,6 @@ class HealthRunner final : public refine::FitObserver {
   // The fit's nuisance terms (refine/fit_terms.hpp): the model's outputs plus x_zero, and
   // ambient_offset + ambient_drift·(t − t0) with t0 its window's first sample.
   double x_zero_ = 0.0, ambient_offset_ = 0.0, ambient_drift_ = 0.0, t0_ = 0.0;
-  // The fitted model's states through its window (seed()).
-  std::vector<scp::refine::ModelState> states_;
   scp::health::Vector2 inverse_sigma_ = scp::health::Vector2::Zero();
   HealthView view_{};
 };
