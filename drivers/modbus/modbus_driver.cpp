@@ -212,14 +212,14 @@ void ModbusDriver::prepare() {
   gap_ns_ = std::llround(kRtuFrameGapChars * char_time_s(settings_) * 1e9);
   // A cycle's I/O fits its period (check_timing() approved n x response_timeout within it); an
   // offline run has no wall-clock period to fit.
+  cycle_budget_ns_ = settings_.enforce_period_budget ? std::llround(period_s_ * 1e9)
+                                                     : std::numeric_limits<std::int64_t>::max() / 2;
   // One write of 0 V outside a cycle: the silence before its request, then its reply's wait.
   safe_budget_ns_ =
       std::llround(settings_.response_timeout_s * 1e9) +
       (settings_.transport == Transport::rtu
            ? rtu_silence_ns(std::llround(char_time_s(settings_) * 1e9), settings_.baud)
            : 0);
-  cycle_budget_ns_ = settings_.enforce_period_budget ? std::llround(period_s_ * 1e9)
-                                                     : std::numeric_limits<std::int64_t>::max() / 2;
 }
 
 void ModbusDriver::connect_first() {
