@@ -29,6 +29,12 @@ ProcessResult batch(const TempDir& dir, const json& cfg, const char* name) {
       Seconds(900));
 }
 
+// `scp-estimatord --check-config` of the test configuration with `overrides` merged in.
+ProcessResult check_config(const TempDir& dir, const json& overrides) {
+  write_config(dir.file("check.yaml"), merge_config(base_config(dir.path()), overrides));
+  return run_process({estimatord_path(), "--check-config", dir.file("check.yaml")}, Seconds(30));
+}
+
 // A clean bench the model describes: both blocks pass, the refined estimate is recommended, and
 // the verdict is in the summary's table. If the validation were not run, not published, or its
 // declared noise not passed, `validation` would be missing or the noise ratio absent.
@@ -120,9 +126,7 @@ TEST(Validation, ConfigErrorsNameTheKey) {
       {{{"sensors", {{"noise", {{"x_m", -1}}}}}}, "sensors.noise.x_m"},
   };
   for (const auto& [bad, key] : cases) {
-    write_config(dir.file("bad.yaml"), merge_config(base_config(dir.path()), bad));
-    const ProcessResult r =
-        run_process({estimatord_path(), "--check-config", dir.file("bad.yaml")}, Seconds(30));
+    const ProcessResult r = check_config(dir, bad);
     EXPECT_NE(r.exit_code, 0) << key;
     EXPECT_TRUE(contains(r.err + r.out, key)) << key << ": " << r.err << r.out;
   }
@@ -145,20 +149,14 @@ TEST(Validation, UnfittedTermsAreRefusedNamingTheKey) {
        "refine.extensions.cooling_tempco"},
   };
   for (const auto& [bad, key] : cases) {
-    write_config(dir.file("bad.yaml"), merge_config(base_config(dir.path()), bad));
-    const ProcessResult r =
-        run_process({estimatord_path(), "--check-config", dir.file("bad.yaml")}, Seconds(30));
+    const ProcessResult r = check_config(dir, bad);
     EXPECT_NE(r.exit_code, 0) << key;
     EXPECT_TRUE(contains(r.err + r.out, key)) << key << ": " << r.err << r.out;
     EXPECT_TRUE(contains(r.err + r.out, "not implemented yet")) << key << ": " << r.err << r.out;
   }
-  write_config(
-      dir.file("off.yaml"),
-      merge_config(base_config(dir.path()), {{"refine",
-                                              {{"nuisance", {{"sensor_lag", 0}}},
-                                               {"extensions", {{"resistance_tempco", "off"}}}}}}));
-  const ProcessResult ok =
-      run_process({estimatord_path(), "--check-config", dir.file("off.yaml")}, Seconds(30));
+  const ProcessResult ok = check_config(
+      dir, {{"refine",
+             {{"nuisance", {{"sensor_lag", 0}}}, {"extensions", {{"resistance_tempco", "off"}}}}}});
   EXPECT_EQ(ok.exit_code, 0) << ok.err << ok.out;
 }
 
