@@ -10,9 +10,9 @@ namespace scp::refine {
 std::span<const WindowSample> prepare_window(std::span<const WindowSample> window,
                                              estimator::VoltageHold hold, VoltageInterval interval,
                                              std::vector<WindowSample>& storage) {
+  if (reads_as_recorded(hold, interval) || window.empty()) return window;
   const bool after = interval == VoltageInterval::after;
   const bool foh = hold == estimator::VoltageHold::foh;
-  if ((!after && !foh) || window.empty()) return window;
   storage.assign(window.begin(), window.end());
   if (after) {
     for (std::size_t k = window.size() - 1; k > 0; --k) {

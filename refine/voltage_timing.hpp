@@ -18,8 +18,14 @@
 
 namespace scp::refine {
 
+// Whether the model reads a window as recorded under `hold` and `interval`: zoh and the interval
+// before. Otherwise prepare_window needs storage for a copy (for `estimate`, if it chooses after).
+constexpr bool reads_as_recorded(estimator::VoltageHold hold, VoltageInterval interval) noexcept {
+  return hold == estimator::VoltageHold::zoh && interval == VoltageInterval::before;
+}
+
 // `window` as the model reads it under `hold` and `interval` (before or after): `window` itself
-// when nothing changes (zoh, before), else `storage` filled and returned.
+// when it reads_as_recorded, else `storage` filled and returned.
 std::span<const WindowSample> prepare_window(std::span<const WindowSample> window,
                                              estimator::VoltageHold hold, VoltageInterval interval,
                                              std::vector<WindowSample>& storage);

@@ -107,9 +107,8 @@ Refiner::Refiner(const config::RefineSettings& settings,
       window_(window_capacity(settings.window_s, period_s)) {
   // Only a window the model reads differently needs its own copy (prepare_window): reserved
   // only then, as the daemon's locked memory makes every reserved page resident.
-  const bool reads_as_recorded = voltage_hold_ == scp::estimator::VoltageHold::zoh &&
-                                 settings.voltage_interval == scp::refine::VoltageInterval::before;
-  if (!reads_as_recorded) prepared_.reserve(window_capacity(settings.window_s, period_s));
+  if (!scp::refine::reads_as_recorded(voltage_hold_, settings.voltage_interval))
+    prepared_.reserve(window_capacity(settings.window_s, period_s));
   view_.interval_s = settings.interval_s;
 }
 
