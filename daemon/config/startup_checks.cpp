@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "common/checks.hpp"
+#include "drivers/modbus/timing.hpp"
 
 namespace scp::config {
 
@@ -106,6 +107,12 @@ void check_suspicious_values(const DaemonConfig& cfg, std::vector<Finding>& out)
          num(v_max) + " V is above safety.voltage_max_v " + num(limit) +
              " V: the safety clamp cuts the excitation at " + num(limit) +
              " V, which distorts its spectrum; lower excitation.v_max or raise the limit"});
+  }
+  if (cfg.driver.type == DriverType::modbus) {
+    for (std::string& text :
+         drivers::modbus::line_timing_warnings(cfg.driver.modbus, cfg.loop.period_s))
+      out.push_back(
+          {Finding::Severity::warning, "driver.modbus.response_timeout", std::move(text)});
   }
 }
 

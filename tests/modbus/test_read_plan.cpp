@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <string>
+#include <vector>
 
 #include "drivers/driver.hpp"
 #include "drivers/modbus/read_plan.hpp"
@@ -102,6 +104,47 @@ TEST(CheckTiming, BudgetIsTimeoutTimesTransactions) {
   s.temperature.address = 40;  // now two reads + a write = 1.5 ms
   EXPECT_EQ(transactions_per_cycle(s), 3);
   EXPECT_THROW(check_timing(s, 0.001), DriverError);
+}
+
+// One read of x and T (4 registers) and a float32 command (function 16, 2 registers) on an RTU
+// line: the frames' characters from the Modbus serial line specification, counted here again.
+ModbusSettings rtu_line(int baud, double timeout_s) {
+  ModbusSettings s = two_signals(0, 2);
+  s.transport = Transport::rtu;
+  s.baud = baud;
+  s.response_timeout_s = timeout_s;
+  return s;
+}
+
+TEST(CheckTiming, LineWarningsCountFramesAndSilences) {
+  const double char_s = 10.0 / 115200.0;              // 8N1
+  const double read_s = (8 + (5 + 2 * 4)) * char_s;   // request + 4-register reply
+  const double write_s = ((9 + 2 * 2) + 8) * char_s;  // function 16 + its echo
+  const LineCycle line = line_cycle(rtu_line(115200, 0.008));
+  EXPECT_EQ(line.transactions, 2);
+  EXPECT_NEAR(line.wire_s, read_s + write_s, 1e-9);
+  EXPECT_NEAR(line.longest_exchange_s, std::max(read_s, write_s), 1e-9);
+  EXPECT_NEAR(line.silences_s, 2 * 1.75e-3, 1e-9);  // fixed above 19200 Bd
+
+  EXPECT_TRUE(line_timing_warnings(rtu_line(115200, 0.008), 0.020).empty());  // 2 x 8 + 3.5
+  ModbusSettings tcp = rtu_line(115200, 0.010);
+  tcp.transport = Transport::tcp;
+  EXPECT_TRUE(line_timing_warnings(tcp, 0.020).empty());
+
+  auto only = [](const std::vector<std::string>& w, const char* what) {
+    EXPECT_EQ(w.size(), 1u);
+    return !w.empty() && w[0].find(what) != std::string::npos;
+  };
+  const auto silences = line_timing_warnings(rtu_line(115200, 0.010), 0.020);  // 23.5 ms
+  EXPECT_TRUE(only(silences, "t3.5 silences (3.5 ms)")) << silences[0];
+  EXPECT_NE(silences[0].find("lower the timeout to 8.25 ms"), std::string::npos) << silences[0];
+  const auto short_timeout = line_timing_warnings(rtu_line(115200, 0.001), 0.020);
+  EXPECT_TRUE(only(short_timeout, "shorter than the 1.82 ms")) << short_timeout[0];
+  // 9600 Bd: the frames alone (43.8 ms) and the silences (7.3 ms) overrun a 20 ms period.
+  const auto slow = line_timing_warnings(rtu_line(9600, 0.009), 0.020);
+  ASSERT_EQ(slow.size(), 2u);
+  EXPECT_NE(slow[0].find("shorter than"), std::string::npos) << slow[0];
+  EXPECT_NE(slow[1].find("more than the 20 ms loop period"), std::string::npos) << slow[1];
 }
 
 }  // namespace
