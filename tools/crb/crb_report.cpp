@@ -8,7 +8,7 @@ namespace scp::tools::crb {
 
 nlohmann::json crb_report(const Experiment& e, const NoiseLevel& noise,
                           const std::array<bool, 6>& known, double ambient_c,
-                          double temperature_max_c) {
+                          double temperature_max_c, const refine::NuisanceSettings& nuisance) {
   if (!(std::isfinite(noise.x) && noise.x > 0.0 && std::isfinite(noise.temperature) &&
         noise.temperature > 0.0)) {
     throw std::invalid_argument(
@@ -16,7 +16,7 @@ nlohmann::json crb_report(const Experiment& e, const NoiseLevel& noise,
         "exactly): set driver.sim.noise.x and .temperature, or --noise-x and --noise-temperature");
   }
   const refine::Matrix6 cov = refine::cramer_rao_bound(
-      e.window, e.theta, e.initial, refine::Vector2(noise.x, noise.temperature), known);
+      e.window, e.theta, e.initial, refine::Vector2(noise.x, noise.temperature), known, nuisance);
 
   std::vector<double> theta(6), sigma(6), rel(6);
   std::vector<bool> known_list(6);
@@ -39,6 +39,11 @@ nlohmann::json crb_report(const Experiment& e, const NoiseLevel& noise,
   out["crb_sigma"] = finite_or_null(sigma);
   out["crb_rel"] = finite_or_null(rel);
   out["known"] = known_list;
+  nlohmann::json estimated = nlohmann::json::array();
+  if (!nuisance.x_zero.fixed) estimated.push_back("x_zero");
+  if (!nuisance.ambient_offset.fixed) estimated.push_back("ambient_offset");
+  if (!nuisance.ambient_drift.fixed) estimated.push_back("ambient_drift");
+  out["nuisance_estimated"] = std::move(estimated);
   out["noise"] = {{"x", noise.x}, {"temperature", noise.temperature}};
   out["period_s"] = e.period_s;
   out["duration_s"] = e.duration_s;

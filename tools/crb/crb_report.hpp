@@ -5,6 +5,7 @@
 #include <array>
 #include <nlohmann/json.hpp>
 
+#include "refine/fit_terms.hpp"
 #include "tools/crb/experiment.hpp"
 
 namespace scp::tools::crb {
@@ -14,13 +15,15 @@ struct NoiseLevel {
   double temperature = 0.0;  // °C
 };
 
-// Calls refine::cramer_rao_bound() on the experiment's window and returns
-//   theta, crb_sigma (absolute), crb_rel (σ/|θ|), known, noise, window {t_begin, t_end, samples},
-//   initial_state, excitation {mean_v, mean_v2, max_v}, thermal {mean_tbar, max_tbar,
-//   max_temperature_c, temperature_max_c, within_limit}.
+// Calls refine::cramer_rao_bound() on the experiment's window, the nuisance terms that `nuisance`
+// leaves free estimated alongside (as the daemon's fit estimates them: refine.nuisance), and
+// returns
+//   theta, crb_sigma (absolute), crb_rel (σ/|θ|), known, nuisance_estimated (names), noise, window
+//   {t_begin, t_end, samples}, initial_state, excitation {mean_v, mean_v2, max_v}, thermal
+//   {mean_tbar, max_tbar, max_temperature_c, temperature_max_c, within_limit}.
 // Throws std::invalid_argument when a noise level is not > 0 (a noise-free channel has no bound).
 nlohmann::json crb_report(const Experiment& experiment, const NoiseLevel& noise,
                           const std::array<bool, 6>& known, double ambient_c,
-                          double temperature_max_c);
+                          double temperature_max_c, const refine::NuisanceSettings& nuisance = {});
 
 }  // namespace scp::tools::crb
