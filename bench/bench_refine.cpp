@@ -183,6 +183,100 @@ void BM_EigenLevenbergMarquardt(benchmark::State& state) {
 }
 BENCHMARK(BM_EigenLevenbergMarquardt)->Unit(benchmark::kMillisecond)->Iterations(1);
 
+// ---- One pass against the arithmetic it cannot avoid (issue 29, item 2) ----
+//
+// BM_PassFlopReference runs, over the same window, the per-sample arithmetic of a pass with
+// sensitivities and nothing else: e^Ω, φ1(Ω), φ2(Ω) and the thermal coefficients precomputed
+// once (θ at the window's start, so no exponential, no series and no settings inside the loop),
+// fixed-size vectors, the normal equations in their upper triangle. Per sample, in multiply-adds:
+//   thermal block T̄ and its mean 4, chord slope 1, the state's forcing 4, [x, ẋ] 8;
+//   ∂T̄/∂(θ5, θ6, T̄0) 6; the mechanical forcing G of the 9 simulated slots 5, its mean and slope
+//   over the piece 18, ∂[x, ẋ]/∂p 2·9·4 = 72; residuals and cost 6;
+//   JᵀWJ's upper triangle: x over its 10 slots (θ, x0, ẋ0, T̄0, the x zero) 55, T̄ over its 5
+//   (θ5, θ6, T̄0, the ambient's offset and drift) 15; JᵀWr 15
+// = 209 multiply-adds, ~420 flops: 1.3·10⁸ flops for 300,000 samples. The row to read is
+// BM_PassWithSensitivities / BM_PassFlopReference (ns_per_sample, same process, same load).
+struct FlopReference {
+  FlopReference(const std::vector<WindowSample>& w, const Vector6& th)
+      : theta(th), tau(w[1].t - w[0].t), thermal(thermal_piece(th[kCooling], tau)) {
+    Matrix2 omega;
+    omega << 0.0, tau, -tau * th[kStiffness], -tau * th[kDamping];
+    ef = exp_phi(omega);
+  }
+
+  // One pass: the returned sum depends on every sample's arithmetic.
+  double run(const std::vector<WindowSample>& w, double wx, double wt) const {
+    using Slots9 = Eigen::Matrix<double, kModelSlots, 1>;
+    using Vector10 = Eigen::Matrix<double, 10, 1>;
+    using Vector5 = Eigen::Matrix<double, 5, 1>;
+    const double th2 = theta[kDampingSlope], th4 = theta[kThermalForce], th6 = theta[kHeating];
+    const double e00 = ef.exp(0, 0), e01 = ef.exp(0, 1), e10 = ef.exp(1, 0), e11 = ef.exp(1, 1);
+    const double p0 = ef.phi1(0, 1), p1 = ef.phi1(1, 1), q0 = ef.phi2(0, 1), q1 = ef.phi2(1, 1);
+    double x = 0.0, v = 0.0, tb = 0.0, cost = 0.0;
+    Slots9 sx = Slots9::Zero(), sv = Slots9::Zero(), ga = Slots9::Zero();
+    Eigen::Vector3d st(0.0, 0.0, 1.0);  // ∂T̄/∂(θ5, θ6, T̄0)
+    sx[kX0] = 1.0;
+    sv[kXdot0] = 1.0;
+    // JᵀWJ and JᵀWr by row: x's 10 slots, T̄'s 5 (in the pass they share one 12 × 12 matrix).
+    Eigen::Matrix<double, 10, 10> hx = Eigen::Matrix<double, 10, 10>::Zero();
+    Eigen::Matrix<double, 5, 5> ht = Eigen::Matrix<double, 5, 5>::Zero();
+    Vector10 gx = Vector10::Zero();
+    Vector5 gt = Vector5::Zero();
+    for (std::size_t k = 1; k < w.size(); ++k) {
+      const double u = w[k - 1].voltage * w[k - 1].voltage, ta = tb;
+      tb = thermal.decay * ta + th6 * (thermal.gain * u);
+      const double tavg = thermal.mean_of_start * ta + th6 * (thermal.mean_of_input * u);
+      const double slope = (tb - ta) / tau;
+      const double a = -th4 * (tavg - 0.5 * tau * slope) * tau, b = -th4 * slope * tau * tau;
+      const double xa = x, va = v;
+      x = e00 * xa + e01 * va + p0 * a + q0 * b;
+      v = e10 * xa + e11 * va + p1 * a + q1 * b;
+      st *= thermal.decay;
+      st[0] += -tau * thermal.decay * ta + thermal.dgain_dtheta5 * th6 * u;
+      st[1] += thermal.gain * u;
+      Slots9 gb = Slots9::Zero();
+      gb[kDamping] = -v;
+      gb[kDampingSlope] = -tb * v;
+      gb[kStiffness] = -x;
+      gb[kThermalForce] = -tb;
+      const double through = -(th2 * v + th4);
+      gb[kCooling] = through * st[0];
+      gb[kHeating] = through * st[1];
+      gb[kTbar0] = through * st[2];
+      const Slots9 am = tau * ga, bm = tau * (gb - ga);
+      const Slots9 sxa = sx;
+      sx = e00 * sxa + e01 * sv + p0 * am + q0 * bm;
+      sv = e10 * sxa + e11 * sv + p1 * am + q1 * bm;
+      ga = gb;
+      const double rx = w[k].x - x, rt = w[k].tbar - tb;
+      cost += wx * rx * rx + wt * rt * rt;
+      Vector10 jx;
+      jx << sx, 1.0;
+      const Vector5 jt(st[0], st[1], st[2], 1.0, w[k].t - w[0].t);
+      for (int j = 0; j < 10; ++j) hx.col(j).head(j + 1) += (wx * jx[j]) * jx.head(j + 1);
+      for (int j = 0; j < 5; ++j) ht.col(j).head(j + 1) += (wt * jt[j]) * jt.head(j + 1);
+      gx += (wx * rx) * jx;
+      gt += (wt * rt) * jt;
+    }
+    return cost + hx.sum() + ht.sum() + gx.sum() + gt.sum();
+  }
+
+  Vector6 theta;
+  double tau;
+  ThermalPiece thermal;
+  ExpPhi ef;
+};
+
+void BM_PassFlopReference(benchmark::State& state) {
+  const auto& w = window();
+  const FlopReference reference(w, truth());
+  for (auto _ : state) benchmark::DoNotOptimize(reference.run(w, 1e14, 1e6));
+  state.counters["ns_per_sample"] =
+      benchmark::Counter(static_cast<double>(w.size()) * state.iterations(),
+                         benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_PassFlopReference)->Unit(benchmark::kMillisecond);
+
 }  // namespace
 
 BENCHMARK_MAIN();

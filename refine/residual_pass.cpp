@@ -1,6 +1,7 @@
 #include "refine/residual_pass.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -15,6 +16,50 @@
 namespace scp::refine {
 
 namespace {
+
+// The slots where a row of J can be non-zero, ascending: T̄'s row is structurally 0 outside
+// θ5, θ6, T̄0 and the ambient's terms, x's outside the ambient's terms (parameters.hpp).
+template <bool (*In)(int)>
+constexpr auto row_slots() {
+  constexpr int n = [] {
+    int count = 0;
+    for (int s = 0; s < kParams; ++s) count += In(s) ? 1 : 0;
+    return count;
+  }();
+  std::array<int, n> slots{};
+  for (int s = 0, i = 0; s < kParams; ++s)
+    if (In(s)) slots[static_cast<std::size_t>(i++)] = s;
+  return slots;
+}
+constexpr auto kXRowSlots = row_slots<in_x_output>();
+constexpr auto kTbarRowSlots = row_slots<in_tbar_output>();
+
+// Column Slots[B] of JᵀWJ's upper triangle += c·v over rows Slots[0..B]: a fixed-size segment
+// where the slots are the leading ones (x's row), else term by term.
+template <const auto& Slots, std::size_t B>
+inline void add_upper_column(ParamMatrix& h, const ParamVector& v, double c) noexcept {
+  constexpr int j = Slots[B];
+  if constexpr (Slots.back() + 1 == static_cast<int>(Slots.size())) {
+    h.col(j).template head<j + 1>() += c * v.template head<j + 1>();
+  } else {
+    for (std::size_t a = 0; a <= B; ++a) h(Slots[a], j) += c * v[Slots[a]];
+  }
+}
+
+// JᵀWJ's upper triangle += α·v vᵀ where v is non-zero at `Slots` only: Eigen's
+// selfadjointView<Upper>().rankUpdate(v, α) term by term ((α·v_j)·v_i into (i, j), column by
+// column, so the same sums), without the structural zeros, which are a sixth of x's row and most
+// of T̄'s, and unrolled at compile time: Eigen's loop over dynamic-length columns took a third of
+// a pass.
+template <const auto& Slots, std::size_t... B>
+inline void add_outer_upper(ParamMatrix& h, const ParamVector& v, double alpha,
+                            std::index_sequence<B...>) noexcept {
+  (add_upper_column<Slots, B>(h, v, alpha * v[Slots[B]]), ...);
+}
+template <const auto& Slots>
+inline void add_outer_upper(ParamMatrix& h, const ParamVector& v, double alpha) noexcept {
+  add_outer_upper<Slots>(h, v, alpha, std::make_index_sequence<Slots.size()>{});
+}
 
 // Overlapping batch means: Σ over windows of B consecutive scores of (Σ s)(Σ s)ᵀ/B equals the
 // Bartlett-weighted sum of the score's autocovariances with bandwidth B (Newey–West), at O(81) per
@@ -309,8 +354,8 @@ WeightedSample add_timing_weighted(const PassSettings& settings, double wx, doub
   const double omega = outlier_weight(settings.outlier_threshold, ref.x_residual(sample, settings),
                                       ref.tbar_residual(sample, settings, t0), w_xx, w_xt, w_tt);
   if (omega < 1.0) ++r.outliers;
-  if (w_xx != 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, omega * w_xx);
-  if (w_tt != 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jt, omega * w_tt);
+  if (w_xx != 0.0) add_outer_upper<kXRowSlots>(r.jtwj, jx, omega * w_xx);
+  if (w_tt != 0.0) add_outer_upper<kTbarRowSlots>(r.jtwj, jt, omega * w_tt);
   if (w_xt != 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, jt, omega * w_xt);
   const Eigen::Vector2d e = w * Eigen::Vector2d(rx, rt);  // W r
   WeightedSample out;
@@ -379,8 +424,8 @@ bool jacobian_pass(std::span<const WindowSample> window, const ParamVector& p,
     }
     WeightedSample sample;
     if (!timing) {
-      if (wx > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, wx);
-      if (wt > 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jt, wt);
+      if (wx > 0.0) add_outer_upper<kXRowSlots>(r.jtwj, jx, wx);
+      if (wt > 0.0) add_outer_upper<kTbarRowSlots>(r.jtwj, jt, wt);
       sample.score = wx * rx * jx + wt * rt * jt;
     } else {
       sample = add_timing_weighted(settings, wx, wt, ref, window[k], sums.t0, rx, rt, jx, jt, r);

@@ -49,43 +49,42 @@ void SensitivitySimulator::advance_thermal_sensitivities(const Piece& piece, con
 void SensitivitySimulator::advance_piece_sensitivities(const Piece& piece,
                                                        const MechanicalPiece& mp,
                                                        const ModelState& a) noexcept {
-  const ParamVector dtbar_a = dtbar_;
+  using Slots = Eigen::Matrix<double, kModelSlots, 1>;  // the slots the simulation sees
+  const Eigen::Vector3d dtbar_a(dtbar_[kCooling], dtbar_[kHeating], dtbar_[kTbar0]);
   advance_thermal_sensitivities(piece, mp.thermal, a.tbar);
   const ModelState& b = state_;
   const double th2 = theta_[kDampingSlope], th4 = theta_[kThermalForce];
-  // G_p (second row; the first row of G is 0 because dx/dt = ẋ holds for every p).
-  auto forcing = [&](const ModelState& s, const ParamVector& dt) noexcept {
-    ParamVector g = ParamVector::Zero();
+  // G_p (second row; the first row of G is 0 because dx/dt = ẋ holds for every p); dt: ∂T̄/∂θ5,
+  // ∂T̄/∂θ6, ∂T̄/∂T̄0, the only non-zero ones.
+  auto forcing = [&](const ModelState& s, const Eigen::Vector3d& dt) noexcept {
+    Slots g;
     g[kDamping] = -s.xdot;
     g[kDampingSlope] = -s.tbar * s.xdot;
     g[kStiffness] = -s.x;
     g[kThermalForce] = -s.tbar;
     const double through_tbar = -(th2 * s.xdot + th4);
-    g[kCooling] = through_tbar * dt[kCooling];
-    g[kHeating] = through_tbar * dt[kHeating];
+    g[kCooling] = through_tbar * dt[0];
+    g[kHeating] = through_tbar * dt[1];
     g[kX0] = 0.0;
     g[kXdot0] = 0.0;
-    g[kTbar0] = through_tbar * dt[kTbar0];
+    g[kTbar0] = through_tbar * dt[2];
     return g;
   };
-  const ParamVector ga = forcing(a, dtbar_a);
-  const ParamVector gb = forcing(b, dtbar_);
+  const Slots ga = forcing(a, dtbar_a);
+  const Slots gb = forcing(b, Eigen::Vector3d(dtbar_[kCooling], dtbar_[kHeating], dtbar_[kTbar0]));
+  // G linear over the piece (trapezoid mean ḡ, chord slope g'), then as the state's forcing:
+  // w1 = (τ − kq)·ḡ, w2 = (τ − kq)·g', am = w1 − τ/2·w2 = (τ − kq)·G(0), bm = τ·w2 = (τ − kq)·ΔG,
+  // the same in closed form (no quotient by τ per slot).
   const double tau = mp.tau;
-  const double k = tau * tau * tau / 12.0;
+  const double scale = tau - tau * tau * tau / 12.0 * mp.q;
   const Matrix2& e = mp.ef.exp;
   const Matrix2& f1 = mp.ef.phi1;
   const Matrix2& f2 = mp.ef.phi2;
-  for (int p = 0; p < kModelSlots; ++p) {
-    // G linear over the piece: trapezoid mean and chord slope, then as the state's forcing.
-    const double gbar = 0.5 * (ga[p] + gb[p]);
-    const double gslope = (gb[p] - ga[p]) / tau;
-    const double w1 = tau * gbar - k * mp.q * gbar;
-    const double w2 = tau * gslope - k * mp.q * gslope;
-    const double am = w1 - 0.5 * tau * w2, bm = tau * w2;
-    const double sx = dx_[p], sv = dxdot_[p];
-    dx_[p] = e(0, 0) * sx + e(0, 1) * sv + f1(0, 1) * am + f2(0, 1) * bm;
-    dxdot_[p] = e(1, 0) * sx + e(1, 1) * sv + f1(1, 1) * am + f2(1, 1) * bm;
-  }
+  const Slots am = scale * ga;
+  const Slots bm = scale * (gb - ga);
+  const Slots sx = dx_.head<kModelSlots>(), sv = dxdot_.head<kModelSlots>();
+  dx_.head<kModelSlots>() = e(0, 0) * sx + e(0, 1) * sv + f1(0, 1) * am + f2(0, 1) * bm;
+  dxdot_.head<kModelSlots>() = e(1, 0) * sx + e(1, 1) * sv + f1(1, 1) * am + f2(1, 1) * bm;
 }
 
 }  // namespace scp::refine

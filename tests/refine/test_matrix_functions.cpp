@@ -5,6 +5,7 @@
 // φ2(2X) = (φ2(X) + e^X φ2(X) + φ1(X))/4.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 
 #include "refine/matrix_functions.hpp"
@@ -108,6 +109,32 @@ TEST(MatrixFunctions, ScalarPhiNearZero) {
     }
   }
   EXPECT_NEAR(phi12(-1e-12).phi2, 0.5 - 1e-12 / 6.0, 1e-16);
+}
+
+TEST(MatrixFunctions, ScalarPhiFunctionsZeroToFive) {
+  // φ0..φ5 (the thermal block's coefficients) against the long-double closed forms
+  // φ_{k+1} = (φ_k − 1/k!)/z, whose cancellation costs at most ~1e-19·5!/|z|^5 here.
+  for (double z : {-6e-5, -1e-3, -0.3, -0.9, -1.5, -3.0, 2.0}) {
+    const std::array<double, 6> p = phi_functions(z);
+    const long double zl = z;
+    long double want = std::exp(zl), inv_fact = 1.0L;
+    for (int k = 0; k < 6; ++k) {
+      if (std::abs(z) > 0.2 || k < 2) {
+        EXPECT_NEAR(p[static_cast<std::size_t>(k)], static_cast<double>(want),
+                    3e-15 * std::abs(static_cast<double>(want)))
+            << "z " << z << ", k " << k;
+      }
+      want = (want - inv_fact) / zl;
+      inv_fact /= (k + 1);
+    }
+  }
+  // Near 0 against the series' leading terms: φk(z) = 1/k! + z/(k+1)! + O(z²).
+  const std::array<double, 6> p = phi_functions(-1e-9);
+  double inv_fact = 1.0;
+  for (int k = 0; k < 6; ++k) {
+    EXPECT_NEAR(p[static_cast<std::size_t>(k)], inv_fact - 1e-9 * inv_fact / (k + 1), 1e-17) << k;
+    inv_fact /= (k + 1);
+  }
 }
 
 }  // namespace
