@@ -236,6 +236,32 @@ scp::refine::FitSettings Refiner::make_fit_settings() const {
   return fit_settings;
 }
 
+// A converged fit: counted, kept as the next seed when it determined θ, and the paper law tested
+// against it.
+void Refiner::note_converged(const scp::refine::FitResult& r, const PaperEstimate& paper) {
+  RefinedView& v = view_;
+  ++v.converged_fits;
+  // A fit is a seed for the next window only if it determined every free θ to better than
+  // its own size. A converged fit of a short, noisy window can sit in a far local minimum with a
+  // σ that says so; seeding the next, longer fit from it keeps that minimum, where the paper
+  // law's seed leads to the right one.
+  if (well_determined(r.theta, r.sigma, known_)) {
+    have_converged_ = true;
+    last_converged_ = r.theta;
+  }
+  if (all_finite(paper.theta_hat) && all_finite(paper.sigma)) {
+    const scp::refine::BiasTest test =
+        scp::refine::test_against(r, to_vector(paper.theta_hat), to_vector(paper.sigma), known_);
+    v.bias_tested = true;
+    for (std::size_t b = 0; b < 2; ++b) {
+      const auto i = static_cast<Eigen::Index>(b);
+      v.bias_statistic[b] = test.statistic[i];
+      v.bias_threshold[b] = test.threshold[i];
+      v.paper_biased[b] = test.biased[b];
+    }
+  }
+}
+
 const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::int64_t wall_ns) {
   Vector6 start;
   Seed seed = choose_seed(paper, start);
@@ -284,28 +310,7 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   copy_result(r, v);
   if (r.warm) ++v.warm_fits;
 
-  if (v.converged) {
-    ++v.converged_fits;
-    // A fit is a seed for the next window only if it determined every free θ to better than
-    // its own size. A converged fit of a short, noisy window can sit in a far local minimum with a
-    // σ that says so; seeding the next, longer fit from it keeps that minimum, where the paper
-    // law's seed leads to the right one.
-    if (well_determined(r.theta, r.sigma, known_)) {
-      have_converged_ = true;
-      last_converged_ = r.theta;
-    }
-    if (all_finite(paper.theta_hat) && all_finite(paper.sigma)) {
-      const scp::refine::BiasTest test =
-          scp::refine::test_against(r, to_vector(paper.theta_hat), to_vector(paper.sigma), known_);
-      v.bias_tested = true;
-      for (std::size_t b = 0; b < 2; ++b) {
-        const auto i = static_cast<Eigen::Index>(b);
-        v.bias_statistic[b] = test.statistic[i];
-        v.bias_threshold[b] = test.threshold[i];
-        v.paper_biased[b] = test.biased[b];
-      }
-    }
-  }
+  if (v.converged) note_converged(r, paper);
   if (observer_ != nullptr) observer_->on_fit(r, prepared, wall_ns);
   return view_;
 }

@@ -93,6 +93,7 @@ class Refiner {
   void validate(scp::refine::FitResult& r, const PaperEstimate& paper,
                 std::span<const scp::refine::WindowSample> prepared);
   scp::refine::FitSettings make_fit_settings() const;
+  void note_converged(const scp::refine::FitResult& r, const PaperEstimate& paper);
   void drop_oldest() noexcept;
 
   config::RefineSettings settings_;
