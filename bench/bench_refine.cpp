@@ -10,6 +10,7 @@
 #include "refine/fit.hpp"
 #include "refine/residual_pass.hpp"
 #include "refine/sensitivities.hpp"
+#include "refine/warm_start.hpp"
 #include "tests/refine/light_stiff.hpp"
 #include "tests/refine/record.hpp"
 
@@ -280,3 +281,79 @@ BENCHMARK(BM_PassFlopReference)->Unit(benchmark::kMillisecond);
 }  // namespace
 
 BENCHMARK_MAIN();
+
+// --- The warm refit (refine/warm_start.hpp): the daemon's refit every 10 s ---------------------
+
+namespace {
+
+// The daemon's default fit: the three output nuisance terms estimated (refine.nuisance.*).
+FitSettings daemon_settings() {
+  FitSettings s;
+  for (NuisanceSetting* term :
+       {&s.nuisance.x_zero, &s.nuisance.ambient_offset, &s.nuisance.ambient_drift})
+    term->fixed = false;
+  return s;
+}
+
+// 310 s of the paper's experiment with N1 noise: the window [0, 300] s fitted in full, the one
+// 10 s later refitted from it; that window's full fit from the same seed is the reference.
+struct Refit {
+  std::span<const WindowSample> later;
+  WarmStart warm;
+  FitResult cold;  // the full fit of `later`, seeded with the earlier window's θ
+};
+const Refit& refit_case() {
+  static const Refit c = [] {
+    constexpr std::size_t kWindow = 300'000, kStep = 10'000;
+    const auto& w = test::cached_paper_record_n1(310.0, 7);
+    const std::span<const WindowSample> all(w);
+    const FitSettings s = daemon_settings();
+    const FitResult earlier = fit(all.first(kWindow + 1), biased_start(), s);
+    Refit r{all.subspan(kStep, kWindow + 1), warm_start(earlier, s, w.front()), {}};
+    for (std::size_t k = 0; k < kStep; ++k) shift(r.warm, w[k], w[k + 1]);
+    r.cold = fit(r.later, earlier.theta, s);
+    return r;
+  }();
+  return c;
+}
+
+void report_refit(benchmark::State& state, const FitResult& r) {
+  const FitResult& cold = refit_case().cold;
+  double worst = 0.0;
+  for (int i = 0; i < 6; ++i)
+    worst = std::max(worst, std::abs(r.theta[i] - cold.theta[i]) / cold.sigma[i]);
+  state.counters["converged"] = r.converged ? 1 : 0;
+  state.counters["warm"] = r.warm ? 1 : 0;
+  state.counters["iterations"] = r.iterations;
+  state.counters["evaluations"] = r.evaluations;
+  state.counters["theta1_vs_cold_sigma"] = (r.theta[0] - cold.theta[0]) / cold.sigma[0];
+  state.counters["worst_theta_vs_cold_sigma"] = worst;
+}
+
+// The target: ≤ 100 ms CPU, θ̂ within 0.1 σ of the full fit of the same window.
+void BM_WarmRefit300s(benchmark::State& state) {
+  const Refit& c = refit_case();
+  FitSettings s = daemon_settings();
+  s.warm = &c.warm;
+  FitResult r;
+  for (auto _ : state) {
+    r = fit(c.later, c.cold.theta, s);
+    benchmark::DoNotOptimize(r);
+  }
+  report_refit(state, r);
+}
+BENCHMARK(BM_WarmRefit300s)->Unit(benchmark::kMillisecond)->Iterations(5);
+
+// The same window's full fit from the same seed, measured beside it (the refit's baseline).
+void BM_ColdRefit300s(benchmark::State& state) {
+  const Refit& c = refit_case();
+  FitResult r;
+  for (auto _ : state) {
+    r = fit(c.later, c.cold.theta, daemon_settings());
+    benchmark::DoNotOptimize(r);
+  }
+  report_refit(state, r);
+}
+BENCHMARK(BM_ColdRefit300s)->Unit(benchmark::kMillisecond)->Iterations(2);
+
+}  // namespace

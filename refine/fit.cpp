@@ -18,6 +18,7 @@
 
 #include "refine/stages.hpp"
 #include "refine/voltage_timing.hpp"
+#include "refine/warm_start.hpp"
 
 namespace scp::refine {
 
@@ -87,6 +88,23 @@ StopReason verdict(const FitContext& ctx, const FitState& state,
   return StopReason::none;
 }
 
+void conclude(FitContext& ctx, const FitState& state, StopReason stop, FitResult& result) {
+  take_progress(ctx, state, result);
+  if (stop != StopReason::none) {
+    ended(result, stop);
+    return;
+  }
+  const CovarianceOutcome covariance = estimate_covariance(ctx, state, result);
+  if (covariance.stop != StopReason::none) {
+    take_progress(ctx, state, result);
+    ended(result, covariance.stop);
+    return;
+  }
+  result.stop = verdict(ctx, state, covariance);
+  result.converged = state.joint.converged && result.stop == StopReason::none;
+  result.message = result.stop == StopReason::none ? state.joint.message : to_text(result.stop);
+}
+
 namespace {
 
 // fit() on a window whose voltage timing is WindowSample's (refine/voltage_timing.hpp).
@@ -111,17 +129,20 @@ FitResult fit_prepared(std::span<const WindowSample> window, const Vector6& thet
   }
   if (stop == StopReason::none) stop = fit_mechanical(ctx, state);
   if (stop == StopReason::none) stop = fit_joint(ctx, state);
-  take_progress(ctx, state, result);
-  if (stop != StopReason::none) return ended(result, stop);
+  conclude(ctx, state, stop, result);
+  return result;
+}
 
-  const CovarianceOutcome covariance = estimate_covariance(ctx, state, result);
-  if (covariance.stop != StopReason::none) {
-    take_progress(ctx, state, result);
-    return ended(result, covariance.stop);
-  }
-  result.stop = verdict(ctx, state, covariance);
-  result.converged = state.joint.converged && result.stop == StopReason::none;
-  result.message = result.stop == StopReason::none ? state.joint.message : to_text(result.stop);
+// The full staged fit (without FitSettings::warm).
+FitResult fit_cold(std::span<const WindowSample> window, const Vector6& theta_start,
+                   const FitSettings& settings) {
+  const VoltageInterval interval = settings.voltage_interval == VoltageInterval::estimate
+                                       ? choose_voltage_interval(window, theta_start, settings)
+                                       : settings.voltage_interval;
+  std::vector<WindowSample> storage;
+  FitResult result = fit_prepared(prepare_window(window, settings.voltage_hold, interval, storage),
+                                  theta_start, settings);
+  result.voltage_interval = interval;
   return result;
 }
 
@@ -134,13 +155,14 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
     result.theta = theta_start;
     return ended(result, bad);
   }
-  const VoltageInterval interval = settings.voltage_interval == VoltageInterval::estimate
-                                       ? choose_voltage_interval(window, theta_start, settings)
-                                       : settings.voltage_interval;
-  std::vector<WindowSample> storage;
-  FitResult result = fit_prepared(prepare_window(window, settings.voltage_hold, interval, storage),
-                                  theta_start, settings);
-  result.voltage_interval = interval;
+  if (settings.warm == nullptr) return fit_cold(window, theta_start, settings);
+  FitResult warm = refit(window, *settings.warm, settings);
+  if (warm.warm) return warm;
+  // The warm attempt's work counts in what the fit cost.
+  FitResult result = fit_cold(window, theta_start, settings);
+  result.warm_fallback = warm.warm_fallback;
+  result.iterations += warm.iterations;
+  result.evaluations += warm.evaluations;
   return result;
 }
 

@@ -23,6 +23,7 @@
 #include "refine/fit_terms.hpp"
 #include "refine/stop_reason.hpp"
 #include "refine/validation.hpp"
+#include "refine/warm_fallback.hpp"
 
 namespace scp::refine {
 
@@ -48,6 +49,8 @@ struct WindowSample {
 
 // The model's state at the window's first sample: x, ẋ, T̄.
 using InitialState = Vector3;
+
+struct WarmStart;  // refine/warm_start.hpp
 
 struct FitSettings {
   int max_iterations = 100;
@@ -112,6 +115,12 @@ struct FitSettings {
   // The sensors' white-noise standard deviations (x in m, T̄ in °C) for the validation's
   // noise-ratio tests; ≤ 0: not declared.
   Vector2 declared_noise = Vector2::Zero();
+  // Non-null: a refit from the previous window's solution shifted to this window
+  // (refine/warm_start.hpp): the joint stage only, from θ, the nuisance terms, the noise model and
+  // the trajectory's state as the previous fit left them, then the covariance and the verdict;
+  // the full staged fit from `theta_start` when the warm start does not apply or does not
+  // converge (FitResult::warm, warm_fallback). Not part of what a warm start compares.
+  const WarmStart* warm = nullptr;
 };
 
 // √χ²₂(0.99): the radius within which 99 % of a two-channel Gaussian residual falls.
@@ -169,6 +178,10 @@ struct FitResult {
   // The model validation of the final pass (refine/validation.hpp); `validated` once it ran.
   ValidationReport validation;
   bool validated = false;
+  // FitSettings::warm: whether this is the warm refit's result, or why the full fit was run
+  // instead (its iterations and evaluations then include the warm attempt's).
+  bool warm = false;
+  WarmFallback warm_fallback = WarmFallback::not_requested;
 };
 
 // Fits θ, the initial state and the noise variances to `window` (at least 3 samples, t strictly

@@ -68,4 +68,9 @@ CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, Fi
 StopReason verdict(const FitContext& ctx, const FitState& state,
                    const CovarianceOutcome& covariance);
 
+// The end of a fit whose stages returned `stop`: θ and what the stages estimated into `result`,
+// then, when they all ran, the covariance at the solution and the verdict (converged, stop,
+// message).
+void conclude(FitContext& ctx, const FitState& state, StopReason stop, FitResult& result);
+
 }  // namespace scp::refine

@@ -11,19 +11,21 @@ std::span<const WindowSample> prepare_window(std::span<const WindowSample> windo
                                              estimator::VoltageHold hold, VoltageInterval interval,
                                              std::vector<WindowSample>& storage) {
   if (reads_as_recorded(hold, interval) || window.empty()) return window;
-  const bool after = interval == VoltageInterval::after;
-  const bool foh = hold == estimator::VoltageHold::foh;
   storage.assign(window.begin(), window.end());
-  if (after) {
-    for (std::size_t k = window.size() - 1; k > 0; --k) {
-      storage[k].voltage = window[k - 1].voltage;
-      storage[k].voltage_since = window[k - 1].t;
-    }
-  }
-  if (foh) {
-    for (std::size_t k = 1; k < storage.size(); ++k) storage[k].voltage_ramp = true;
-  }
+  for (std::size_t k = 1; k < window.size(); ++k)
+    storage[k] = prepared_sample(window[k - 1], window[k], hold, interval);
   return storage;
+}
+
+WindowSample prepared_sample(const WindowSample& prev, const WindowSample& cur,
+                             estimator::VoltageHold hold, VoltageInterval interval) noexcept {
+  WindowSample out = cur;
+  if (interval == VoltageInterval::after) {
+    out.voltage = prev.voltage;
+    out.voltage_since = prev.t;
+  }
+  if (hold == estimator::VoltageHold::foh) out.voltage_ramp = true;
+  return out;
 }
 
 namespace {

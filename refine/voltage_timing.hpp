@@ -30,6 +30,11 @@ std::span<const WindowSample> prepare_window(std::span<const WindowSample> windo
                                              estimator::VoltageHold hold, VoltageInterval interval,
                                              std::vector<WindowSample>& storage);
 
+// Row `cur` as the model reads it under `hold` and `interval` (before or after), `prev` the row
+// recorded before it: what prepare_window makes of every row but the first.
+WindowSample prepared_sample(const WindowSample& prev, const WindowSample& cur,
+                             estimator::VoltageHold hold, VoltageInterval interval) noexcept;
+
 // VoltageInterval::estimate: before or after, whichever leaves the thermal stage's fit (θ5, θ6,
 // T̄0 on T̄ alone, from `theta_start` as fit() starts) the smaller residual. A row's interval is a
 // whole sample period of the voltage's timing, which T̄ resolves to a fraction of a µs

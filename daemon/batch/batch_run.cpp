@@ -204,6 +204,7 @@ nlohmann::json BatchRun::summary(double wall_s) const {
   if (refined != nullptr) {
     out["refine"] = {{"fits", refined->fits},
                      {"converged_fits", refined->converged_fits},
+                     {"warm_fits", refined->warm_fits},
                      {"windows", refined->windows},
                      {"handoff_dropped", last.handoff_dropped}};
   }

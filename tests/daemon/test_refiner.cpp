@@ -7,6 +7,7 @@
 #include <atomic>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <vector>
 
 #include "daemon/analysis/refine/refiner.hpp"
@@ -79,6 +80,8 @@ struct Call {
   std::size_t samples;
   Vector6 start;
   FitSettings settings;
+  // The warm start the fit was offered (settings.warm points into the refiner), copied.
+  std::optional<scp::refine::WarmStart> warm;
 };
 
 class RefinerTest : public ::testing::Test {
@@ -98,8 +101,14 @@ class RefinerTest : public ::testing::Test {
     return Refiner(
         settings_, estimator_, kPeriod,
         [this](std::span<const WindowSample> w, const Vector6& start, const FitSettings& s) {
-          calls_.push_back({w.front().t, w.back().t, w.size(), start, s});
+          calls_.push_back({w.front().t, w.back().t, w.size(), start, s, std::nullopt});
+          if (s.warm != nullptr) calls_.back().warm = *s.warm;
           FitResult r;
+          r.warm = s.warm != nullptr && warm_accepted_;
+          r.warm_fallback = s.warm == nullptr ? scp::refine::WarmFallback::not_requested
+                            : r.warm          ? scp::refine::WarmFallback::none
+                                              : scp::refine::WarmFallback::not_converged;
+          r.initial_state = fitted_initial_;
           r.converged = converge_;
           r.message = converge_ ? "converged" : "gave up";
           r.iterations = 3;
@@ -126,6 +135,8 @@ class RefinerTest : public ::testing::Test {
   estimator::EstimatorConfig estimator_;
   std::vector<Call> calls_;
   bool converge_ = true;
+  bool warm_accepted_ = true;
+  scp::refine::InitialState fitted_initial_{1e-4, 0.0, 5.0};
   Vector6 fitted_theta_ = (Vector6() << 10, 20, 30, 40, 50, 60).finished();
   Vector6 fitted_sigma_ = Vector6::Constant(0.1);
   PaperEstimate paper_{{7, 7, 7, 7, 7, 7}, {1, 1, 1, 1, 1, 1}};
@@ -285,6 +296,57 @@ TEST_F(RefinerTest, SeedIsTheta0WhenThePaperLawHasNothingYet) {
   EXPECT_EQ(r.view().converged_fits, 0U);
   EXPECT_FALSE(r.view().converged);
   EXPECT_STREQ(r.view().message.data(), "gave up");
+}
+
+// Every fit after a window's first is offered the previous fit as a warm start, its trajectory
+// carried to the window's first sample: the previous fit's model simulated from its own first
+// sample through the samples the window dropped since.
+TEST_F(RefinerTest, EachFitIsOfferedThePreviousOneShiftedToItsWindow) {
+  fitted_theta_ << 1247.0, 0.8, 1813.0, 0.1, 0.0594, 1.1;  // a stable model: the paper's
+  Refiner r = make();
+  feed(r, 0.0, 14.0);  // fits at 3, 5, …, 13 s; the window (10 s) slides from 10 s on
+  ASSERT_EQ(calls_.size(), 6U);
+  EXPECT_FALSE(calls_[0].warm.has_value()) << "the window's first fit has nothing to start from";
+  for (std::size_t i = 1; i < calls_.size(); ++i) {
+    ASSERT_TRUE(calls_[i].warm.has_value()) << i;
+    EXPECT_EQ(calls_[i].warm->at.t, calls_[i].t_begin) << i;
+    EXPECT_EQ(calls_[i].warm->theta, fitted_theta_) << i;
+    EXPECT_TRUE(calls_[i].warm->converged) << i;
+  }
+  // The fit at 13 s starts at 3 s; the one before (11 s) started at 1 s, from fitted_initial_.
+  const Call& last = calls_.back();
+  ASSERT_NEAR(last.t_begin, 3.0, 1e-9);
+  std::vector<WindowSample> dropped;
+  for (int i = 100; i <= 300; ++i) dropped.push_back(sample_at(i * kPeriod));
+  std::vector<scp::refine::ModelState> states(dropped.size());
+  scp::refine::simulate(dropped, fitted_theta_, fitted_initial_, states);
+  EXPECT_NEAR(last.warm->state[0], states.back().x, 1e-12);
+  EXPECT_NEAR(last.warm->state[1], states.back().xdot, 1e-12);
+  EXPECT_NEAR(last.warm->state[2], states.back().tbar, 1e-12);
+  EXPECT_EQ(r.view().warm_fits, 5U);
+  EXPECT_TRUE(r.view().warm);
+  EXPECT_EQ(r.view().warm_fallback, scp::refine::WarmFallback::none);
+}
+
+TEST_F(RefinerTest, ABreakInTheDataDropsTheWarmStart) {
+  Refiner r = make();
+  feed(r, 0.0, 4.0);
+  feed(r, 4.0 + 11 * kPeriod, 8.0);  // a gap beyond refine.max_gap_s
+  ASSERT_EQ(calls_.size(), 2U);
+  EXPECT_FALSE(calls_[1].warm.has_value());
+  EXPECT_FALSE(r.view().warm);
+  EXPECT_EQ(r.view().warm_fits, 0U);
+}
+
+TEST_F(RefinerTest, AWarmStartTheFitDeclinesIsCountedAsCold) {
+  warm_accepted_ = false;
+  Refiner r = make();
+  feed(r, 0.0, 5.0);
+  ASSERT_EQ(calls_.size(), 2U);
+  EXPECT_TRUE(calls_[1].warm.has_value());
+  EXPECT_FALSE(r.view().warm);
+  EXPECT_EQ(r.view().warm_fallback, scp::refine::WarmFallback::not_converged);
+  EXPECT_EQ(r.view().warm_fits, 0U);
 }
 
 TEST_F(RefinerTest, HasUnfittedDataOnlyWhenNewSamplesCameAfterTheLastFit) {

@@ -17,7 +17,7 @@ using nlohmann::json;
 
 TEST(Render, VersionErrorAckWatchAreExactLines) {
   EXPECT_EQ(render_version("1.2.3"),
-            "{\"class\":\"VERSION\",\"proto_major\":1,\"proto_minor\":6,\"release\":\"1.2.3\"}\n");
+            "{\"class\":\"VERSION\",\"proto_major\":1,\"proto_minor\":7,\"release\":\"1.2.3\"}\n");
   EXPECT_EQ(render_error("bad \"x\""), "{\"class\":\"ERROR\",\"message\":\"bad \\\"x\\\"\"}\n");
   EXPECT_EQ(render_ack("reset", true, "done"),
             "{\"class\":\"ACK\",\"message\":\"done\",\"ok\":true,\"request\":\"reset\"}\n");
@@ -239,6 +239,29 @@ TEST(Render, EstimateCarriesTheRefinedFit) {
   EXPECT_DOUBLE_EQ(o["theta_true"][4].get<double>(), 0.0594059);
 }
 
+// Issue 29: whether the latest fit was a warm refit, and why not when one was offered.
+TEST(Render, EstimateSaysWhetherTheFitWasWarm) {
+  const PublishedState s = test::sample_state();
+  refine::RefinedView r = sample_refined();
+  r.warm = true;
+  r.warm_fallback = scp::refine::WarmFallback::none;
+  r.warm_fits = 2;
+  r.evaluations = 5;
+  json o = json::parse(render_estimate(s.estimate, &r, 12.5))["refined"];
+  EXPECT_EQ(o["warm"], true);
+  EXPECT_EQ(o["warm_fits"], 2);
+  EXPECT_EQ(o["evaluations"], 5);
+  EXPECT_FALSE(o.contains("warm_fallback"));
+  r.warm = false;
+  r.warm_fallback = scp::refine::WarmFallback::not_converged;
+  o = json::parse(render_estimate(s.estimate, &r, 12.5))["refined"];
+  EXPECT_EQ(o["warm"], false);
+  EXPECT_EQ(o["warm_fallback"], "not_converged");
+  r.warm_fallback = scp::refine::WarmFallback::not_requested;  // a window's first fit
+  o = json::parse(render_estimate(s.estimate, &r, 12.5))["refined"];
+  EXPECT_FALSE(o.contains("warm_fallback"));
+}
+
 TEST(Render, BestFallsBackToThePaperLawWhenTheFitIsStaleOrFailed) {
   const PublishedState s = test::sample_state();
   refine::RefinedView r = sample_refined();
@@ -329,6 +352,7 @@ TEST(Render, StatusCarriesTheRefinementCounters) {
   EXPECT_EQ(j["refine"]["fits"], 4);
   EXPECT_EQ(j["refine"]["converged_fits"], 3);
   EXPECT_EQ(j["refine"]["windows"], 2);
+  EXPECT_EQ(j["refine"]["warm_fits"], 0);
   EXPECT_EQ(j["refine"]["handoff_dropped"], 3);
   EXPECT_DOUBLE_EQ(j["refine"]["last_fit_duration_s"].get<double>(), 0.5);
   EXPECT_FALSE(json::parse(render_status(s, ServerInfo{"0.1.0", "sim", "", ""})).contains("refine"))

@@ -9,6 +9,7 @@
 #include "common/names.hpp"
 #include "refine/fit_terms.hpp"
 #include "refine/validation.hpp"
+#include "refine/warm_fallback.hpp"
 
 namespace scp::daemon::refine {
 
@@ -32,6 +33,7 @@ struct RefinedView {
   std::uint64_t fits = 0;  // fits finished, converged or not
   std::uint64_t converged_fits = 0;  //
   std::uint64_t windows = 0;         // windows started: the first, then one per gap
+  std::uint64_t warm_fits = 0;       // fits that were warm refits (refine/warm_start.hpp)
   double interval_s = 0.0;           // refine.interval_s, for refined_is_best()
 
   double fitted_at_t = 0.0;            // loop time when the fit was made
@@ -57,6 +59,11 @@ struct RefinedView {
   std::uint64_t outliers = 0;  // samples the fit down-weighted (refine::FitResult::outliers)
   bool converged = false;
   int iterations = 0;
+  int evaluations = 0;  // residual passes over the window
+  // A warm refit from the previous fit, or why the full fit ran instead (not_requested: no
+  // previous fit in this window).
+  bool warm = false;
+  scp::refine::WarmFallback warm_fallback = scp::refine::WarmFallback::not_requested;
   std::array<char, kMessageChars> message{};
 
   // The paper law's θ̂ and σ at the latest converged fit, tested against it (refine::test_against):

@@ -84,6 +84,9 @@ void copy_result(const scp::refine::FitResult& r, RefinedView& v) noexcept {
   // A result with a non-finite θ̂ is no result, whatever the solver said.
   v.converged = r.converged && all_finite(v.theta_hat);
   v.iterations = r.iterations;
+  v.evaluations = r.evaluations;
+  v.warm = r.warm;
+  v.warm_fallback = r.warm_fallback;
   v.voltage_interval = r.voltage_interval;
   v.nuisance = r.nuisance;
   v.extensions = r.extensions;
@@ -130,17 +133,24 @@ void Refiner::accept(const HandOff& handoff) noexcept {
   }
   if (restart) {
     window_.clear();
+    warm_held_ = false;
     fitted_in_window_ = false;
     ++view_.windows;
   }
   started_ = true;
   segment_ = handoff.segment;
+  if (window_.size() == window_.capacity()) drop_oldest();  // push would drop it unseen
   window_.push(s);
   if (observer_ != nullptr) observer_->on_sample(s);
   // The window is window_s of loop time: with samples missing (overruns) fewer than its capacity.
   while (window_.size() > 1 && s.t - window_.front().t > settings_.window_s + tolerance_s_) {
-    window_.drop_oldest();
+    drop_oldest();
   }
+}
+
+void Refiner::drop_oldest() noexcept {
+  if (warm_held_) scp::refine::shift(warm_, window_.front(), window_.at(1));
+  window_.drop_oldest();
 }
 
 std::size_t Refiner::drain(HandOffRing& ring) noexcept {
@@ -205,9 +215,7 @@ void Refiner::validate(scp::refine::FitResult& r, const PaperEstimate& paper,
   }
 }
 
-const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::int64_t wall_ns) {
-  Vector6 start;
-  Seed seed = choose_seed(paper, start);
+scp::refine::FitSettings Refiner::make_fit_settings() const {
   scp::refine::FitSettings fit_settings;
   fit_settings.max_iterations = settings_.max_iterations;
   fit_settings.known = known_;
@@ -225,6 +233,40 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   fit_settings.nuisance = settings_.nuisance;
   fit_settings.extensions = settings_.extensions;
   fit_settings.declared_noise = {settings_.declared_noise[0], settings_.declared_noise[1]};
+  return fit_settings;
+}
+
+// A converged fit: counted, kept as the next seed when it determined θ, and the paper law tested
+// against it.
+void Refiner::note_converged(const scp::refine::FitResult& r, const PaperEstimate& paper) {
+  RefinedView& v = view_;
+  ++v.converged_fits;
+  // A fit is a seed for the next window only if it determined every free θ to better than
+  // its own size. A converged fit of a short, noisy window can sit in a far local minimum with a
+  // σ that says so; seeding the next, longer fit from it keeps that minimum, where the paper
+  // law's seed leads to the right one.
+  if (well_determined(r.theta, r.sigma, known_)) {
+    have_converged_ = true;
+    last_converged_ = r.theta;
+  }
+  if (all_finite(paper.theta_hat) && all_finite(paper.sigma)) {
+    const scp::refine::BiasTest test =
+        scp::refine::test_against(r, to_vector(paper.theta_hat), to_vector(paper.sigma), known_);
+    v.bias_tested = true;
+    for (std::size_t b = 0; b < 2; ++b) {
+      const auto i = static_cast<Eigen::Index>(b);
+      v.bias_statistic[b] = test.statistic[i];
+      v.bias_threshold[b] = test.threshold[i];
+      v.paper_biased[b] = test.biased[b];
+    }
+  }
+}
+
+const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::int64_t wall_ns) {
+  Vector6 start;
+  Seed seed = choose_seed(paper, start);
+  scp::refine::FitSettings fit_settings = make_fit_settings();
+  if (warm_held_) fit_settings.warm = &warm_;
 
   const auto begin = std::chrono::steady_clock::now();
   scp::refine::FitResult r = fit_(window_.samples(), start, fit_settings);
@@ -238,6 +280,7 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
     for (int i = 0; i < 6; ++i) {
       if (known_[static_cast<std::size_t>(i)]) other[i] = theta0_[i];
     }
+    fit_settings.warm = nullptr;
     scp::refine::FitResult r2 = fit_(window_.samples(), other, fit_settings);
     if (better(r2, r)) {
       r = r2;
@@ -252,6 +295,10 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
 
   fitted_in_window_ = true;
   last_fit_t_end_ = window_.empty() ? now_t : window_.back().t;
+  // The next fit's warm start, whether or not this one converged (refine::fit declines one that
+  // did not, and says so).
+  warm_held_ = !window_.empty() && r.theta.allFinite() && r.initial_state.allFinite();
+  if (warm_held_) warm_ = scp::refine::warm_start(r, fit_settings, window_.front());
 
   RefinedView& v = view_;
   v.valid = true;
@@ -261,29 +308,9 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   v.duration_s = duration;
   v.seed = seed;
   copy_result(r, v);
+  if (r.warm) ++v.warm_fits;
 
-  if (v.converged) {
-    ++v.converged_fits;
-    // A fit is a seed for the next window only if it determined every free θ to better than
-    // its own size. A converged fit of a short, noisy window can sit in a far local minimum with a
-    // σ that says so; seeding the next, longer fit from it keeps that minimum, where the paper
-    // law's seed leads to the right one.
-    if (well_determined(r.theta, r.sigma, known_)) {
-      have_converged_ = true;
-      last_converged_ = r.theta;
-    }
-    if (all_finite(paper.theta_hat) && all_finite(paper.sigma)) {
-      const scp::refine::BiasTest test =
-          scp::refine::test_against(r, to_vector(paper.theta_hat), to_vector(paper.sigma), known_);
-      v.bias_tested = true;
-      for (std::size_t b = 0; b < 2; ++b) {
-        const auto i = static_cast<Eigen::Index>(b);
-        v.bias_statistic[b] = test.statistic[i];
-        v.bias_threshold[b] = test.threshold[i];
-        v.paper_biased[b] = test.biased[b];
-      }
-    }
-  }
+  if (v.converged) note_converged(r, paper);
   if (observer_ != nullptr) observer_->on_fit(r, prepared, wall_ns);
   return view_;
 }

@@ -5,6 +5,10 @@
 // thread owns one (refine_worker.hpp); a batch run calls it inline between cycles, which makes it
 // deterministic there.
 //
+// Each fit after the first of a window starts warm (refine/warm_start.hpp) from the previous one,
+// carried along the samples the window drops; refine::fit runs the full fit when that does not
+// apply, and the view says which (RefinedView::warm, warm_fallback).
+//
 // A window is one contiguous run of samples, never more: the model is simulated through it from
 // one initial state, so a gap (a time step above refine.max_gap_s, a change of the
 // loop's hand-off segment: a dropped sample, an estimator reset, the loop leaving RUNNING) empties
@@ -20,6 +24,7 @@
 #include "daemon/config/daemon_config.hpp"
 #include "daemon/core/handoff.hpp"
 #include "refine/fit.hpp"
+#include "refine/warm_start.hpp"
 
 namespace scp::daemon::refine {
 
@@ -87,6 +92,9 @@ class Refiner {
   bool window_ready() const noexcept;
   void validate(scp::refine::FitResult& r, const PaperEstimate& paper,
                 std::span<const scp::refine::WindowSample> prepared);
+  scp::refine::FitSettings make_fit_settings() const;
+  void note_converged(const scp::refine::FitResult& r, const PaperEstimate& paper);
+  void drop_oldest() noexcept;
 
   config::RefineSettings settings_;
   Vector6 theta0_;
@@ -107,6 +115,11 @@ class Refiner {
   double last_fit_t_end_ = 0.0;
   bool have_converged_ = false;
   Vector6 last_converged_ = Vector6::Zero();
+  // The latest fit as a warm start (refine/warm_start.hpp), its trajectory stepped along as the
+  // window drops its oldest samples, so that it sits at the window's first sample when the next
+  // fit is due; none after a break in the data.
+  scp::refine::WarmStart warm_;
+  bool warm_held_ = false;
   RefinedView view_{};
 };
 

@@ -27,9 +27,15 @@ class SampleWindow {
   // Oldest first. Not const: may rotate the storage (the samples and their order stay the same).
   std::span<const scp::refine::WindowSample> samples() noexcept;
   std::size_t size() const noexcept { return size_; }
+  std::size_t capacity() const noexcept { return capacity_; }
   bool empty() const noexcept { return size_ == 0; }
   // Callers check !empty().
   const scp::refine::WindowSample& front() const noexcept { return storage_[oldest()]; }
+  // The i-th oldest sample (front() is the 0th); callers check i < size().
+  const scp::refine::WindowSample& at(std::size_t i) const noexcept {
+    const std::size_t slot = oldest() + i;
+    return storage_[slot < capacity_ ? slot : slot - capacity_];
+  }
   const scp::refine::WindowSample& back() const noexcept {
     return storage_[head_ == 0 ? capacity_ - 1 : head_ - 1];
   }

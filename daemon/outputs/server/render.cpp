@@ -200,6 +200,10 @@ void put_refinement(json& out, const EstimateView& estimate, const refine::Refin
   }
   o["converged"] = r.converged;
   o["iterations"] = r.iterations;
+  o["evaluations"] = r.evaluations;
+  o["warm"] = r.warm;
+  if (!r.warm && r.warm_fallback != scp::refine::WarmFallback::not_requested)
+    o["warm_fallback"] = scp::refine::to_text(r.warm_fallback);
   o["voltage_interval"] = scp::refine::to_text(r.voltage_interval);
   if (r.validated) o["validation"] = validation_json(r.validation);
   put_bench_terms(o, r);
@@ -208,6 +212,7 @@ void put_refinement(json& out, const EstimateView& estimate, const refine::Refin
   o["seed"] = refine::seed_name(r.seed);
   o["fits"] = r.fits;
   o["converged_fits"] = r.converged_fits;
+  o["warm_fits"] = r.warm_fits;
   o["windows"] = r.windows;
   if (r.bias_tested) {
     json test = json::object();
@@ -351,6 +356,7 @@ std::string render_status(const PublishedState& state, const ServerInfo& info,
   if (refined != nullptr) {
     json r = {{"fits", refined->fits},
               {"converged_fits", refined->converged_fits},
+              {"warm_fits", refined->warm_fits},
               {"windows", refined->windows},
               {"handoff_dropped", state.handoff_dropped}};
     if (refined->valid) put_finite(r, "last_fit_duration_s", refined->duration_s);

@@ -1,0 +1,144 @@
+// The warm refit (refine/warm_start.hpp): the last stage of the full fit (refine/fit.cpp) from the
+// previous window's solution shifted to this one.
+#include <algorithm>
+#include <vector>
+
+#include "refine/model_simulator.hpp"
+#include "refine/stages.hpp"
+#include "refine/voltage_timing.hpp"
+#include "refine/warm_start.hpp"
+
+namespace scp::refine {
+
+namespace {
+
+bool same(const NuisanceSetting& a, const NuisanceSetting& b) {
+  return a.fixed == b.fixed && (!a.fixed || a.value == b.value);
+}
+
+// Everything that changes what a fit estimates or how (not the cancel flag, not the warm start).
+bool same_settings(const FitSettings& a, const FitSettings& b) {
+  return a.max_iterations == b.max_iterations && a.known == b.known && a.hac_lags == b.hac_lags &&
+         a.covariance_batches == b.covariance_batches && a.max_evaluations == b.max_evaluations &&
+         a.max_input_delay_s == b.max_input_delay_s &&
+         a.sample_timing_jitter == b.sample_timing_jitter &&
+         a.outlier_threshold == b.outlier_threshold &&
+         a.landing_timing_jitter == b.landing_timing_jitter && a.voltage_hold == b.voltage_hold &&
+         a.voltage_interval == b.voltage_interval && same(a.nuisance.x_zero, b.nuisance.x_zero) &&
+         same(a.nuisance.ambient_offset, b.nuisance.ambient_offset) &&
+         same(a.nuisance.ambient_drift, b.nuisance.ambient_drift) &&
+         same(a.nuisance.sensor_lag, b.nuisance.sensor_lag) &&
+         a.extensions.resistance_tempco == b.extensions.resistance_tempco &&
+         a.extensions.stiffness_softening == b.extensions.stiffness_softening &&
+         a.extensions.cooling_tempco == b.extensions.cooling_tempco &&
+         a.declared_noise == b.declared_noise;
+}
+
+// The fit so far as the previous window's fit left it, at this window's first sample.
+FitState shifted_state(std::span<const WindowSample> window, const WarmStart& warm,
+                       const FitSettings& settings) {
+  FitState state;
+  state.p = param_vector(warm.theta, warm.state);
+  state.p[kXZeroSlot] = warm.nuisance[0];
+  state.p[kAmbientOffsetSlot] = warm.nuisance[1];
+  state.p[kAmbientDriftSlot] = warm.nuisance[2];
+  state.noise.x = warm.noise_variance[0];
+  state.noise.tbar = warm.noise_variance[1];
+  state.noise.timing = warm.timing_variance;
+  state.noise.timing_estimated = settings.sample_timing_jitter;
+  state.delay.ok = warm.input_delay_estimated;
+  state.delay.delay = warm.input_delay_s;
+  state.delay.sigma = warm.input_delay_sigma_s;
+  state.delay.sigma_inflation = warm.input_delay_sigma_inflation;
+  // The thermal stage's model range is not at hand: the measured T̄'s serves the same checks (the
+  // joint stage widens it by every pass's model).
+  const auto [lo, hi] = std::minmax_element(
+      window.begin(), window.end(),
+      [](const WindowSample& a, const WindowSample& b) { return a.tbar < b.tbar; });
+  state.range = {lo->tbar - warm.nuisance[1], hi->tbar - warm.nuisance[1]};
+  return state;
+}
+
+FitResult declined(FitResult& result, WarmFallback why) {
+  result.warm = false;
+  result.warm_fallback = why;
+  return result;
+}
+
+}  // namespace
+
+WarmStart warm_start(const FitResult& fit, const FitSettings& settings, const WindowSample& first) {
+  WarmStart w;
+  w.settings = settings;
+  w.settings.cancel = nullptr;
+  w.settings.warm = nullptr;
+  w.converged = fit.converged;
+  w.t_end = fit.t_end;
+  w.theta = fit.theta;
+  w.state = fit.initial_state;
+  w.at = first;
+  w.nuisance = {fit.nuisance.x_zero.value, fit.nuisance.ambient_offset.value,
+                fit.nuisance.ambient_drift.value};
+  w.noise_variance = fit.noise_sigma.cwiseProduct(fit.noise_sigma);
+  w.timing_variance = fit.sample_timing_sigma_s * fit.sample_timing_sigma_s;
+  w.input_delay_estimated = fit.input_delay_estimated;
+  w.input_delay_s = fit.input_delay_s;
+  w.input_delay_sigma_s = fit.input_delay_sigma_s;
+  w.input_delay_sigma_inflation = fit.input_delay_sigma_inflation;
+  w.voltage_interval = fit.voltage_interval;
+  return w;
+}
+
+void shift(WarmStart& warm, const WindowSample& from, const WindowSample& next) noexcept {
+  const WindowSample to =
+      prepared_sample(from, next, warm.settings.voltage_hold, warm.voltage_interval);
+  ModelState s{warm.state[0], warm.state[1], warm.state[2]};
+  ThermalCache cache;
+  advance_interval(warm.theta, warm.at, to, warm.input_delay_s, s, cache);
+  warm.state = {s.x, s.xdot, s.tbar};
+  warm.nuisance[1] += warm.nuisance[2] * (to.t - warm.at.t);
+  warm.at = to;
+}
+
+WarmFallback applicable(const WarmStart& warm, std::span<const WindowSample> window,
+                        const FitSettings& settings) {
+  if (!same_settings(warm.settings, settings)) return WarmFallback::settings_changed;
+  if (!warm.converged) return WarmFallback::not_converged_before;
+  if (window.empty() || warm.at.t != window.front().t || !(window.front().t <= warm.t_end))
+    return WarmFallback::no_overlap;
+  if (!warm.state.allFinite() || !warm.theta.allFinite()) return WarmFallback::no_overlap;
+  return WarmFallback::none;
+}
+
+FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
+                const FitSettings& settings) {
+  FitResult result;
+  result.theta = warm.theta;
+  if (const WarmFallback why = applicable(warm, window, settings); why != WarmFallback::none)
+    return declined(result, why);
+  std::vector<WindowSample> storage;
+  const std::span<const WindowSample> prepared =
+      prepare_window(window, settings.voltage_hold, warm.voltage_interval, storage);
+  result.voltage_interval = warm.voltage_interval;
+  result.samples = prepared.size();
+  result.t_begin = prepared.front().t;
+  result.t_end = prepared.back().t;
+
+  FitContext ctx(prepared, settings);
+  ctx.max_iterations = std::min(ctx.max_iterations, kWarmIterations);
+  FitState state = shifted_state(prepared, warm, settings);
+  if (state.delay.ok) ctx.budget.set_input_delay(state.delay.delay);
+  const StopReason stop = fit_joint(ctx, state);
+  if (stop != StopReason::none || !state.joint.converged) {
+    result.iterations = state.iterations;
+    result.evaluations = ctx.budget.evaluations();
+    return declined(result, WarmFallback::not_converged);
+  }
+  conclude(ctx, state, stop, result);
+  if (!result.converged) return declined(result, WarmFallback::verdict_failed);
+  result.warm = true;
+  result.warm_fallback = WarmFallback::none;
+  return result;
+}
+
+}  // namespace scp::refine

@@ -1,0 +1,61 @@
+#pragma once
+// A warm refit: the daemon refits a sliding window every few seconds, and the previous window's
+// solution, shifted to the new window, is already near the new one's. As in moving-horizon
+// estimation, the new fit starts from it (θ, the nuisance terms and the noise model as they were,
+// the state at the new window's first sample from the previous fit's own trajectory) and runs only
+// the joint stage, the covariance and the verdict of the full fit (refine/fit.cpp).
+//
+// The trajectory is carried by the caller, one sample at a time as the window slides past
+// (shift()): the samples between the two windows' first samples leave the window before the next
+// fit, and keeping them would double the window's memory.
+
+#include <span>
+
+#include "refine/fit.hpp"
+
+namespace scp::refine {
+
+// Joint-stage iterations a warm refit may take before it gives way to the full fit: a converged
+// neighbour needs one or two.
+inline constexpr int kWarmIterations = 5;
+
+struct WarmStart {
+  FitSettings settings;  // what the previous fit was made with (cancel and warm cleared)
+  bool converged = false;
+  double t_end = 0.0;  // the previous window's last sample
+  Vector6 theta = Vector6::Zero();
+  InitialState state = InitialState::Zero();  // the previous fit's model at `at`
+  WindowSample at;  // the sample `state` belongs to, as the model reads it (prepared_sample)
+  // The nuisance terms at `at` (the ambient's offset moves with its drift), the noise model's
+  // variances (x, T̄; the samples' timing, s²) and the voltage's timing as the fit left them.
+  Vector3 nuisance = Vector3::Zero();  // x zero, ambient offset, ambient drift
+  Vector2 noise_variance = Vector2::Zero();
+  double timing_variance = 0.0;
+  bool input_delay_estimated = false;
+  double input_delay_s = 0.0, input_delay_sigma_s = 0.0, input_delay_sigma_inflation = 1.0;
+  VoltageInterval voltage_interval = VoltageInterval::before;
+};
+
+// The warm start `fit` leaves at its window's first sample `first` (as recorded), for a fit made
+// with `settings`.
+WarmStart warm_start(const FitResult& fit, const FitSettings& settings, const WindowSample& first);
+
+// Steps `warm` from its sample, recorded as `from`, to `next`, the sample recorded after it: the
+// previous fit's model over that interval (as its window read it), the ambient offset moved by
+// its drift.
+void shift(WarmStart& warm, const WindowSample& from, const WindowSample& next) noexcept;
+
+// WarmFallback::none when `warm` can seed a fit of `window` under `settings`: the previous fit
+// converged, under the same settings, and `warm` has been shifted to the window's first sample,
+// which the previous window held.
+WarmFallback applicable(const WarmStart& warm, std::span<const WindowSample> window,
+                        const FitSettings& settings);
+
+// The warm refit of `window` (checked by the caller, as fit() does) from `warm`: the joint stage
+// with at most kWarmIterations iterations per round of its noise model, then the covariance and
+// the verdict. warm = true when it applied, converged and passed; otherwise warm_fallback says
+// why (fit() with FitSettings::warm then runs the full fit).
+FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
+                const FitSettings& settings);
+
+}  // namespace scp::refine
