@@ -71,10 +71,18 @@ Budget::Budget(std::span<const WindowSample> window, const FitSettings& settings
 }
 
 StopReason Budget::stop() const {
+  if (ended_ != StopReason::none) return ended_;
   if (cancel_ != nullptr && cancel_->load(std::memory_order_relaxed)) return StopReason::cancelled;
   if (evaluations_ >= max_evaluations_) return StopReason::evaluation_budget_spent;
   if (substeps_ >= max_substeps_) return StopReason::work_budget_spent;
   return StopReason::none;
+}
+
+bool Budget::unresolved(const ParamVector& p, double tbar_lo, double tbar_hi) const {
+  const double damping = std::max(std::abs(p[kDamping] + p[kDampingSlope] * tbar_lo),
+                                  std::abs(p[kDamping] + p[kDampingSlope] * tbar_hi));
+  const double rho = damping + std::sqrt(std::abs(p[kStiffness]));
+  return rho * mean_interval_ > kUnresolvedPolePerSample;
 }
 
 PassResult Budget::pass(std::span<const WindowSample> w, const ParamVector& p, PassSettings ps) {

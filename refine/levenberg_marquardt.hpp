@@ -26,14 +26,33 @@ namespace scp::refine {
 //   const char* stop;          // non-null: give up now with this message (cancelled, budget spent)
 //   Eigen::MatrixXd normal;    // JᵀWJ in z
 //   Eigen::VectorXd gradient;  // JᵀWr in z (the cost decreases along +gradient)
+// and optionally
+//   bool unresolved;  // the model at z has a pole the samples cannot resolve (refine/budget.hpp)
+//   bool too_stiff;   // the model at z is too stiff to simulate at all (a failed step)
 template <class Evaluation>
 struct LmOutcome {
   Eigen::VectorXd z;
   Evaluation at_z;
   int iterations = 0;
   bool converged = false;
+  // Ended by the rule of runs_past_resolution(): converged = false.
+  bool stalled = false;
   const char* message = "";
 };
+
+// Stalled: from a model whose fast pole the samples already cannot resolve, the step leads to
+// one too stiff to simulate. The cost still falls that way (a term the model lacks, taken up by
+// an ever faster pole), but beyond the sampling the data cannot tell those models apart, and each
+// pass there simulates up to kMaxPolePerSample / kMaxStiffnessPerSubstep sub-steps per sample:
+// the fit would spend its work budget creeping along the bound toward a solution its verdict
+// rejects (fast_pole_unresolved).
+template <class Evaluation>
+bool runs_past_resolution(const Evaluation& current, const Evaluation& trial) {
+  if constexpr (requires { current.unresolved, trial.too_stiff; })
+    return current.unresolved && trial.too_stiff;
+  else
+    return false;
+}
 
 struct LmSettings {
   int max_iterations = 100;
@@ -127,6 +146,11 @@ LmOutcome<Evaluation> levenberg_marquardt(Evaluate&& evaluate, Eigen::VectorXd z
         return out;
       }
     } else {
+      if (runs_past_resolution(cur, trial)) {
+        out.stalled = true;
+        out.message = "stalled: the step runs beyond the sampling's resolution";
+        return out;
+      }
       mu *= nu;
       nu *= 2.0;
       // The linear model promises less than the cost's own rounding can show: done.

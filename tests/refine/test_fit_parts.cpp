@@ -88,6 +88,7 @@ TEST(StopReasons, EachHasItsOwnTextAndNoneHasNone) {
                             StopReason::work_budget_spent,
                             StopReason::input_delay_not_estimated,
                             StopReason::model_not_finite,
+                            StopReason::stalled,
                             StopReason::model_unstable,
                             StopReason::fast_pole_unresolved,
                             StopReason::covariance_singular,
