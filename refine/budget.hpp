@@ -21,12 +21,23 @@ namespace scp::refine {
 // (tests/refine/test_robust.cpp, AnUnidentifiableScaleEndsWithinTheBudget).
 inline constexpr double kMaxPolePerSample = 50.0;
 
+// A fast pole this far beyond the sampling (e⁻²⁰ ≈ 2e-9 of the mode left after one interval, below
+// any noise) is not resolved by the window: the samples do not determine the common scale of
+// θ1..θ4 there (refine/fit.cpp's verdict).
+inline constexpr double kUnresolvedPolePerSample = 20.0;
+
 class Budget {
  public:
   Budget(std::span<const WindowSample> window, const FitSettings& settings);
 
-  // Why the fit must stop now (cancelled, a budget spent), or StopReason::none.
+  // Why the fit must stop now (cancelled, a budget spent, end()), or StopReason::none.
   StopReason stop() const;
+  // Every stop() from here on says `reason`.
+  void end(StopReason reason) { ended_ = reason; }
+
+  // Whether the mechanical block of p has, somewhere in T̄ ∈ [tbar_lo, tbar_hi], a pole beyond
+  // kUnresolvedPolePerSample of the window's sampling.
+  bool unresolved(const ParamVector& p, double tbar_lo, double tbar_hi) const;
 
   // residual_pass over `w` with the fit's cancel flag, input delay and sub-step bound, counted.
   PassResult pass(std::span<const WindowSample> w, const ParamVector& p, PassSettings ps);
@@ -44,6 +55,7 @@ class Budget {
   int evaluations_ = 0;
   long substeps_ = 0;
   double input_delay_ = 0.0;
+  StopReason ended_ = StopReason::none;
 };
 
 }  // namespace scp::refine

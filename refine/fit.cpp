@@ -24,11 +24,6 @@ namespace scp::refine {
 
 namespace {
 
-// A solution whose fast pole is this far beyond the sampling (e⁻²⁰ ≈ 2e-9 left after one
-// interval) sits on the flat valley of kMaxPolePerSample (refine/budget.hpp): the window does not
-// determine the common scale.
-constexpr double kUnresolvedPolePerSample = 20.0;
-
 // ρ(A) of the mechanical block at the extremes of T̄ (the bound substeps() uses).
 double stiffness(const ParamVector& p, const TbarRange& range) {
   const double damping = std::max(std::abs(p[kDamping] + p[kDampingSlope] * range.lo),

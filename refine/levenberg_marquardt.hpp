@@ -26,14 +26,36 @@ namespace scp::refine {
 //   const char* stop;          // non-null: give up now with this message (cancelled, budget spent)
 //   Eigen::MatrixXd normal;    // JᵀWJ in z
 //   Eigen::VectorXd gradient;  // JᵀWr in z (the cost decreases along +gradient)
+// and optionally
+//   bool unresolved;  // the model at z has a pole the samples cannot resolve (refine/budget.hpp)
+//   bool too_stiff;   // the model at z is too stiff to simulate at all (a failed step)
 template <class Evaluation>
 struct LmOutcome {
   Eigen::VectorXd z;
   Evaluation at_z;
   int iterations = 0;
   bool converged = false;
+  // Ended by the rule of runs_past_resolution(): converged = false.
+  bool stalled = false;
   const char* message = "";
 };
+
+// Stalled: the run started from a model whose poles the samples resolve, went on to one whose
+// fast pole they no longer resolve, and from there the step leads to one too stiff to simulate. The
+// cost still falls that way (a term the model lacks, taken up by an ever faster pole), but beyond
+// the sampling the data cannot tell those models apart, and each pass there simulates up to
+// kMaxPolePerSample / kMaxStiffnessPerSubstep sub-steps per sample: the fit would spend its work
+// budget creeping along the bound toward a solution its verdict rejects (fast_pole_unresolved). A
+// run that starts beyond the resolution (a scale search's start on the valley) may still come back
+// from it.
+template <class Evaluation>
+bool runs_past_resolution(const Evaluation& start, const Evaluation& current,
+                          const Evaluation& trial) {
+  if constexpr (requires { current.unresolved, trial.too_stiff; })
+    return !start.unresolved && current.unresolved && trial.too_stiff;
+  else
+    return false;
+}
 
 struct LmSettings {
   int max_iterations = 100;
@@ -60,6 +82,7 @@ LmOutcome<Evaluation> levenberg_marquardt(Evaluate&& evaluate, Eigen::VectorXd z
     out.message = "model not finite at the start";
     return out;
   }
+  const Evaluation start = out.at_z;
   const Eigen::Index n = z.size();
   // μ starts small: the scaled normal matrix of the mechanical block has a tiny eigenvalue (the
   // common scale of θ1..θ4, docs/numerics.md, "A consistent estimate"), and a μ above it would
@@ -127,6 +150,11 @@ LmOutcome<Evaluation> levenberg_marquardt(Evaluate&& evaluate, Eigen::VectorXd z
         return out;
       }
     } else {
+      if (runs_past_resolution(start, cur, trial)) {
+        out.stalled = true;
+        out.message = "stalled: the step runs beyond the sampling's resolution";
+        return out;
+      }
       mu *= nu;
       nu *= 2.0;
       // The linear model promises less than the cost's own rounding can show: done.

@@ -14,6 +14,8 @@ namespace {
 struct Evaluation {
   const char* stop = nullptr;  // the fit's budget is spent or it was cancelled
   bool finite = false;
+  bool unresolved = false;  // refine/levenberg_marquardt.hpp's runs_past_resolution()
+  bool too_stiff = false;
   double cost = 0.0;
   Eigen::MatrixXd normal;
   Eigen::VectorXd gradient;
@@ -83,6 +85,11 @@ StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c
     e.finite =
         e.pass.finite && std::isfinite(e.pass.cost) &&
         (pass_settings.thermal_only ? p[kCooling] > 0.0 : stable_over(p, widened(range, e.pass)));
+    e.too_stiff = e.pass.too_stiff;
+    if (e.finite && !pass_settings.thermal_only) {
+      const TbarRange seen = widened(range, e.pass);
+      e.unresolved = budget.unresolved(p, seen.lo, seen.hi);
+    }
     e.cost = e.pass.cost;
     e.normal = t.transpose() * e.pass.jtwj * t;
     e.gradient = t.transpose() * e.pass.jtwr;
@@ -101,6 +108,8 @@ StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c
   r.iterations = out.iterations;
   r.converged = out.converged;
   r.message = out.message;
+  // The fit ends there: the stages after it would start from the same unresolved model.
+  if (out.stalled) budget.end(StopReason::stalled);
   r.stopped = budget.stop() != StopReason::none;
   return r;
 }

@@ -24,6 +24,9 @@ const char* to_text(StopReason reason) noexcept {
       return "the voltage's delay could not be estimated from T (no heating?)";
     case StopReason::model_not_finite:
       return "model not finite";
+    case StopReason::stalled:
+      return "stalled: the model does not explain the data (the fit runs to a fast mechanical "
+             "pole beyond the sampling)";
     case StopReason::model_unstable:
       return "model unstable at the fit";
     case StopReason::fast_pole_unresolved:

@@ -18,6 +18,9 @@ enum class StopReason {
   // A stage that cannot go on.
   input_delay_not_estimated,
   model_not_finite,
+  // From a model whose fast pole the sampling no longer resolves, the step leads to one too stiff
+  // to simulate (refine/levenberg_marquardt.hpp, runs_past_resolution()).
+  stalled,
   // The verdict on the solution, in the order it checks them.
   model_unstable,
   fast_pole_unresolved,

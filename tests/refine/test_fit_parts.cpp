@@ -11,6 +11,7 @@
 
 #include "refine/budget.hpp"
 #include "refine/golden_section.hpp"
+#include "refine/levenberg_marquardt.hpp"
 #include "refine/parameters.hpp"
 #include "refine/stage.hpp"
 #include "refine/stop_reason.hpp"
@@ -88,6 +89,7 @@ TEST(StopReasons, EachHasItsOwnTextAndNoneHasNone) {
                             StopReason::work_budget_spent,
                             StopReason::input_delay_not_estimated,
                             StopReason::model_not_finite,
+                            StopReason::stalled,
                             StopReason::model_unstable,
                             StopReason::fast_pole_unresolved,
                             StopReason::covariance_singular,
@@ -214,6 +216,76 @@ TEST(Budget, StopsAPassWhoseModelIsStifferThanTheSamplingShows) {
   const PassResult r = budget.pass(w, param_vector(theta, Eigen::Vector3d::Zero()), {});
   EXPECT_FALSE(r.finite);
   EXPECT_TRUE(r.too_stiff);
+}
+
+TEST(Budget, RefusesAPassThatCannotFinishWithoutSimulatingIt) {
+  const auto& w = test::cached_paper_record(2.0);
+  const Vector6 paper = test::theta_of(test::paper_actuator());
+  FitSettings settings;
+  Budget budget(w, settings);
+  Vector6 theta = paper;
+  theta[kDamping] *= 60.0;  // ρ(A)·Δt ≈ 75 over every T̄: beyond kMaxPolePerSample
+  const PassResult refused = budget.pass(w, param_vector(theta, Eigen::Vector3d::Zero()), {});
+  EXPECT_TRUE(refused.too_stiff);
+  EXPECT_FALSE(refused.finite);
+  EXPECT_EQ(refused.substeps, 0);
+  EXPECT_EQ(budget.evaluations(), 1);
+  // Stiff, but within the bound: simulated (and its pole not resolved by 1 kHz samples).
+  theta = paper;
+  theta[kDamping] *= 24.0;  // ρ(A)·Δt ≈ 30
+  const ParamVector stiff = param_vector(theta, Eigen::Vector3d::Zero());
+  const PassResult simulated = budget.pass(w, stiff, {});
+  EXPECT_TRUE(simulated.finite);
+  EXPECT_GT(simulated.substeps, static_cast<long>(10 * w.size()));
+  EXPECT_TRUE(budget.unresolved(stiff, simulated.tbar_min, simulated.tbar_max));
+  const ParamVector p = param_vector(paper, Eigen::Vector3d::Zero());
+  EXPECT_FALSE(budget.unresolved(p, 0.0, 100.0));
+  EXPECT_EQ(budget.stop(), StopReason::none);
+  budget.end(StopReason::stalled);
+  EXPECT_EQ(budget.stop(), StopReason::stalled);
+}
+
+// cost (3 − z)², too stiff to simulate beyond z = 2, and a pole the sampling cannot resolve
+// beyond z = `unresolved_beyond`.
+struct WallEvaluation {
+  const char* stop = nullptr;
+  bool finite = false;
+  double cost = 0.0;
+  Eigen::MatrixXd normal = Eigen::MatrixXd::Ones(1, 1);
+  Eigen::VectorXd gradient = Eigen::VectorXd::Zero(1);
+  bool unresolved = false;
+  bool too_stiff = false;
+};
+
+LmOutcome<WallEvaluation> descend_to_the_wall(double unresolved_beyond) {
+  const auto evaluate = [&](const Eigen::VectorXd& z) {
+    WallEvaluation e;
+    e.too_stiff = z[0] > 2.0;
+    e.finite = !e.too_stiff;
+    e.cost = (3.0 - z[0]) * (3.0 - z[0]);
+    e.gradient[0] = 3.0 - z[0];
+    e.unresolved = z[0] > unresolved_beyond;
+    return e;
+  };
+  LmSettings lm;
+  lm.observations = 1.0;
+  return levenberg_marquardt<WallEvaluation>(evaluate, Eigen::VectorXd::Zero(1), lm);
+}
+
+TEST(LevenbergMarquardt, StallsWhenAStepFromAnUnresolvedModelIsTooStiff) {
+  const auto stalled = descend_to_the_wall(1.0);
+  EXPECT_TRUE(stalled.stalled);
+  EXPECT_FALSE(stalled.converged);
+  EXPECT_GT(stalled.z[0], 1.0);
+  EXPECT_LE(stalled.z[0], 2.0);
+  EXPECT_NE(std::string(stalled.message).find("stalled"), std::string::npos);
+  // Too stiff steps from models the sampling resolves are failed steps as before.
+  const auto resolved = descend_to_the_wall(10.0);
+  EXPECT_FALSE(resolved.stalled);
+  EXPECT_GT(resolved.iterations, stalled.iterations);
+  // A run that starts beyond the resolution may come back: it does not stall.
+  const auto started_there = descend_to_the_wall(-1.0);
+  EXPECT_FALSE(started_there.stalled);
 }
 
 TEST(GoldenSection, FindsAParabolasVertexAndCountsItsSteps) {
