@@ -170,7 +170,7 @@ class HealthMonitor {
   void update_reference(double t);
   void design_cusums();
   void fast_alarm(const ScoreBlock& block);
-  bool late_drift(int parameter, double onset);
+  bool late_drift(int parameter, double& onset);
   void raise_change(const ChangePoint& change);
   void raise_drift(double t, const std::array<ParameterTrend, kParams>& trend, double onset,
                    int parameter);

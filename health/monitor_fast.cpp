@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "health/departure_shape.hpp"
 #include "health/monitor.hpp"
 
 namespace scp::health {
@@ -14,8 +15,9 @@ namespace {
 constexpr double kRecentBlocksSeconds = 900.0;
 // How far before the CUSUM's change point a drift's start is searched.
 constexpr double kRampSearchSeconds = 600.0;
-// A ramp must fit better than a step by this much (χ²₁ at 0.999): right after a step the few
-// blocks since it fit both shapes alike, and the step is the fast detector's design.
+// A ramp must fit better than a step, and a jump must not improve the ramp, by this much (χ²₁ at
+// 0.999, in units of the fit's residual scale): right after a step the few blocks since it fit
+// both shapes alike, and the step is the fast detector's design.
 constexpr double kRampMargin = 10.83;
 constexpr double kRampMinEvidenceSeconds = 20.0;
 
@@ -101,53 +103,32 @@ void HealthMonitor::add_block(const ScoreBlock& block) {
 }
 
 // A drift that starts late makes the reference lag behind it until the trend catches up: the
-// residual grows linearly where a step's is constant. Each block's single-parameter estimate
-// δ_b = s_b/I_b (weight I_b) over the recent blocks is fitted as a step, δ = ∆·[t ≥ s], and as a
-// ramp, δ = r·(t − s)⁺, over a grid of s; a ramp whose weighted residual sum is clearly smaller
-// raises `drift` from s and starts a new segment there.
-bool HealthMonitor::late_drift(int parameter, double onset) {
-  struct Fit {
-    double sse = 1e300, onset = 0.0, amplitude = 0.0;
-  } step, ramp;
+// residual grows from zero where a step's jumps (departure_shape.hpp). A ramp that fits the
+// recent blocks' single-parameter estimates clearly better than a step, with no significant jump
+// at its start, raises `drift` from its start and starts a new segment there. Otherwise `onset`
+// becomes the step fit's change point: the CUSUM's (where it last stood at zero) comes early
+// when the statistic crept up on the reference's error before the step, and the change summed
+// from there is diluted by the blocks before it.
+bool HealthMonitor::late_drift(int parameter, double& onset) {
   // A step alarms within a few blocks of its onset, and over so few any two-parameter shape
   // fits: only an alarm that took longer to build up can be a drift.
   if (recent_blocks_.empty() || recent_blocks_.back().t_end - onset < kRampMinEvidenceSeconds)
     return false;
-  double total = 0.0;
-  for (const auto& b : recent_blocks_) {
-    const double info = b.information(parameter, parameter);
-    if (info > 0.0) total += b.score[parameter] * b.score[parameter] / info;
+  const DepartureShape shape = fit_departure(recent_blocks_, parameter, onset, kRampSearchSeconds);
+  if (!shape.is_drift(kRampMargin)) {
+    if (shape.step.valid) onset = shape.step.onset;
+    return false;
   }
-  const double first = std::max(recent_blocks_.front().t_begin, onset - kRampSearchSeconds);
-  for (double s = first; s <= onset; s += settings_.block_s) {
-    double gg[2] = {0, 0}, gd[2] = {0, 0};
-    for (const auto& b : recent_blocks_) {
-      const double info = b.information(parameter, parameter);
-      const double t = 0.5 * (b.t_begin + b.t_end);
-      const double g[2] = {t >= s ? 1.0 : 0.0, std::max(0.0, t - s)};
-      for (int k = 0; k < 2; ++k) {
-        gg[k] += g[k] * g[k] * info;
-        gd[k] += g[k] * b.score[parameter];  // Σ g·I·δ = Σ g·s
-      }
-    }
-    for (int k = 0; k < 2; ++k) {
-      if (!(gg[k] > 0.0)) continue;
-      const double sse = total - gd[k] * gd[k] / gg[k];
-      Fit& f = k == 0 ? step : ramp;
-      if (sse < f.sse) f = {sse, s, gd[k] / gg[k]};
-    }
-  }
-  if (!(step.sse - ramp.sse > kRampMargin)) return false;
   std::array<ParameterTrend, kParams> trend{};
   ParameterTrend& p = trend[parameter];
-  const double theta = std::abs(reference_at(ramp.onset).theta[parameter]);
+  const double theta = std::abs(reference_at(shape.ramp.onset).theta[parameter]);
   p.tested = true;
-  p.per_hour = ramp.amplitude * 3600.0;
+  p.per_hour = shape.ramp.slope * 3600.0;
   p.relative_per_hour = theta > 0.0 ? p.per_hour / theta : 0.0;
   p.drifting = true;
   const double t = recent_blocks_.back().t_end;
-  if (drift_armed_) raise_drift(t, trend, ramp.onset, parameter);
-  start_segment(ramp.onset, t);
+  if (drift_armed_) raise_drift(t, trend, shape.ramp.onset, parameter);
+  start_segment(shape.ramp.onset, t);
   return true;
 }
 
@@ -155,11 +136,15 @@ void HealthMonitor::fast_alarm(const ScoreBlock& block) {
   int channel = 0;
   for (int i = 1; i < kParams; ++i)
     if (cusums_[i].ratio() > cusums_[channel].ratio()) channel = i;
-  const double onset = cusums_[channel].onset();
-  ScoreBlock since;
-  for (const auto& b : recent_blocks_)
-    if (b.t_begin >= onset) since.add(b);
-  const Isolation iso = isolate(since.score, since.information);
+  double onset = cusums_[channel].onset();
+  const auto sum_since = [this](double from) {
+    ScoreBlock sum;
+    for (const auto& b : recent_blocks_)
+      if (b.t_begin >= from) sum.add(b);
+    return sum;
+  };
+  ScoreBlock since = sum_since(onset);
+  Isolation iso = isolate(since.score, since.information);
   const double theta = std::abs(reference_at(onset).theta[std::max(iso.parameter, 0)]);
   if (iso.parameter < 0 || !(std::abs(iso.delta) >= settings_.min_relative_change * theta)) {
     ++report_.dismissed;
@@ -167,6 +152,11 @@ void HealthMonitor::fast_alarm(const ScoreBlock& block) {
     return;
   }
   if (late_drift(iso.parameter, onset)) return;
+  if (onset != cusums_[channel].onset()) {
+    since = sum_since(onset);
+    const Isolation from_step = isolate(since.score, since.information);
+    if (from_step.parameter >= 0) iso = from_step;
+  }
   ChangePoint c;
   c.detector = Detector::fast;
   c.onset = onset;
