@@ -109,8 +109,9 @@ class RefinerTest : public ::testing::Test {
                             : r.warm          ? scp::refine::WarmFallback::none
                                               : scp::refine::WarmFallback::not_converged;
           r.initial_state = fitted_initial_;
-          r.converged = converge_;
-          r.message = converge_ ? "converged" : "gave up";
+          r.converged = converge_ && !stall_;
+          r.message = r.converged ? "converged" : "gave up";
+          if (stall_) r.stop = scp::refine::StopReason::stalled;
           r.iterations = 3;
           r.theta = fitted_theta_;
           r.sigma = fitted_sigma_;
@@ -135,6 +136,7 @@ class RefinerTest : public ::testing::Test {
   estimator::EstimatorConfig estimator_;
   std::vector<Call> calls_;
   bool converge_ = true;
+  bool stall_ = false;
   bool warm_accepted_ = true;
   scp::refine::InitialState fitted_initial_{1e-4, 0.0, 5.0};
   Vector6 fitted_theta_ = (Vector6() << 10, 20, 30, 40, 50, 60).finished();
@@ -347,6 +349,27 @@ TEST_F(RefinerTest, AWarmStartTheFitDeclinesIsCountedAsCold) {
   EXPECT_FALSE(r.view().warm);
   EXPECT_EQ(r.view().warm_fallback, scp::refine::WarmFallback::not_converged);
   EXPECT_EQ(r.view().warm_fits, 0U);
+}
+
+// A window the model did not explain is refitted when it has doubled, or once full renewed, not
+// every interval; the first fit that does not stall restores the interval.
+TEST_F(RefinerTest, AfterAFitThatStalledTheNextWaitsForTheWindowToDoubleOrRenew) {
+  stall_ = true;
+  Refiner r = make();
+  feed(r, 0.0, 9.0);
+  ASSERT_EQ(calls_.size(), 2U);  // at 3 s (span 3: next at 6), at 6 s (span 6: next at 12)
+  EXPECT_NEAR(calls_[0].t_end, 3.0, 1e-9);
+  EXPECT_NEAR(calls_[1].t_end, 6.0, 1e-9);
+  stall_ = false;
+  feed(r, 9.01, 14.0);
+  ASSERT_EQ(calls_.size(), 4U);  // at 12 s, then every interval again: 14 s
+  EXPECT_NEAR(calls_[2].t_end, 12.0, 1e-9);
+  EXPECT_NEAR(calls_[3].t_end, 14.0, 1e-9);
+  stall_ = true;
+  feed(r, 14.01, 30.0);          // the window is full (10 s): a stalled fit waits for it to renew
+  ASSERT_EQ(calls_.size(), 6U);  // at 16 s, then 26 s
+  EXPECT_NEAR(calls_[4].t_end, 16.0, 1e-9);
+  EXPECT_NEAR(calls_[5].t_end, 26.0, 1e-9);
 }
 
 TEST_F(RefinerTest, HasUnfittedDataOnlyWhenNewSamplesCameAfterTheLastFit) {

@@ -135,6 +135,7 @@ void Refiner::accept(const HandOff& handoff) noexcept {
     window_.clear();
     warm_held_ = false;
     fitted_in_window_ = false;
+    stalled_wait_s_ = 0.0;
     ++view_.windows;
   }
   started_ = true;
@@ -170,7 +171,8 @@ bool Refiner::window_ready() const noexcept {
 bool Refiner::due() const noexcept {
   if (!window_ready()) return false;
   if (!fitted_in_window_) return true;
-  return window_.back().t - last_fit_t_end_ + tolerance_s_ >= settings_.interval_s;
+  return window_.back().t - last_fit_t_end_ + tolerance_s_ >=
+         std::max(settings_.interval_s, stalled_wait_s_);
 }
 
 bool Refiner::has_unfitted_data() const noexcept {
@@ -295,6 +297,12 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
 
   fitted_in_window_ = true;
   last_fit_t_end_ = window_.empty() ? now_t : window_.back().t;
+  // A fit that stalled found data its model cannot explain; refitting a window that is mostly the
+  // same data would stall again at the cost of a full fit each interval. The next attempt waits
+  // until the window has doubled, or once full, renewed.
+  stalled_wait_s_ = r.stop == scp::refine::StopReason::stalled
+                        ? std::min(r.t_end - r.t_begin, settings_.window_s)
+                        : 0.0;
   // The next fit's warm start, whether or not this one converged (refine::fit declines one that
   // did not, and says so).
   warm_held_ = !window_.empty() && r.theta.allFinite() && r.initial_state.allFinite();

@@ -63,7 +63,8 @@ class Refiner {
   // Everything waiting in the ring; returns how many.
   std::size_t drain(HandOffRing& ring) noexcept;
 
-  // The window spans min_window_s and interval_s of loop time passed since the last fit's data.
+  // The window spans min_window_s and interval_s of loop time passed since the last fit's data
+  // (after a fit that stalled: the span of that fit's window, up to window_s, if longer).
   bool due() const noexcept;
   // The window spans min_window_s and holds samples newer than the last fit (the end of a batch
   // run fits once more then).
@@ -113,6 +114,9 @@ class Refiner {
   std::uint64_t segment_ = 0;
   bool fitted_in_window_ = false;
   double last_fit_t_end_ = 0.0;
+  // After a fit that stalled (refine::StopReason::stalled): loop time the next fit waits for
+  // instead of interval_s, when longer.
+  double stalled_wait_s_ = 0.0;
   bool have_converged_ = false;
   Vector6 last_converged_ = Vector6::Zero();
   // The latest fit as a warm start (refine/warm_start.hpp), its trajectory stepped along as the
