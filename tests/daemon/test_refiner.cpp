@@ -330,6 +330,15 @@ TEST_F(RefinerTest, EachFitIsOfferedThePreviousOneShiftedToItsWindow) {
   EXPECT_EQ(r.view().warm_fallback, scp::refine::WarmFallback::none);
 }
 
+TEST_F(RefinerTest, NoWarmStartWhereTheFitEstimatesTheLinksTiming) {
+  settings_.estimate_link_timing = true;
+  Refiner r = make();
+  feed(r, 0.0, 5.0);
+  ASSERT_EQ(calls_.size(), 2U);
+  EXPECT_FALSE(calls_[1].warm.has_value());
+  EXPECT_TRUE(calls_[1].settings.sample_timing_jitter);
+}
+
 TEST_F(RefinerTest, ABreakInTheDataDropsTheWarmStart) {
   Refiner r = make();
   feed(r, 0.0, 4.0);
