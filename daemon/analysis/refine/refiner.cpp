@@ -268,10 +268,7 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   Vector6 start;
   Seed seed = choose_seed(paper, start);
   scp::refine::FitSettings fit_settings = make_fit_settings();
-  // Not on a link whose timing the fit estimates: a warm refit would hold the voltage's delay at
-  // the previous fit's and has not been shown sound beside the jitter and landing filters there
-  // (one loaded run of the e2e link-timing test took a wrong solution for converged).
-  if (warm_held_ && !settings_.estimate_link_timing) fit_settings.warm = &warm_;
+  if (warm_held_) fit_settings.warm = &warm_;
 
   const auto begin = std::chrono::steady_clock::now();
   scp::refine::FitResult r = fit_(window_.samples(), start, fit_settings);
@@ -307,8 +304,12 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
                         ? std::min(r.t_end - r.t_begin, settings_.window_s)
                         : 0.0;
   // The next fit's warm start, whether or not this one converged (refine::fit declines one that
-  // did not, and says so).
-  warm_held_ = !window_.empty() && r.theta.allFinite() && r.initial_state.allFinite();
+  // did not, and says so). None on a link whose timing the fit estimates: a warm refit would hold
+  // the voltage's delay at the previous fit's and has not been shown sound beside the jitter and
+  // landing filters there (one loaded run of the e2e link-timing test took a wrong solution for
+  // converged); not held, it is not stepped along the window either.
+  warm_held_ = !settings_.estimate_link_timing && !window_.empty() && r.theta.allFinite() &&
+               r.initial_state.allFinite();
   if (warm_held_) warm_ = scp::refine::warm_start(r, fit_settings, window_.front());
 
   RefinedView& v = view_;
