@@ -17,6 +17,10 @@ FreeMask thermal_slots(const FitSettings& settings) {
   FreeMask free = thermal_slots(settings.known);
   free[kAmbientOffsetSlot] = !settings.nuisance.ambient_offset.fixed;
   free[kAmbientDriftSlot] = !settings.nuisance.ambient_drift.fixed;
+  FreeMask extensions{};
+  free_extensions(settings.extensions, extensions);
+  free[kResistanceTempcoSlot] = extensions[kResistanceTempcoSlot];
+  free[kCoolingTempcoSlot] = extensions[kCoolingTempcoSlot];
   return free;
 }
 
@@ -25,6 +29,18 @@ PassSettings thermal_pass_settings() {
   ps.weight = {0.0, 1.0};
   ps.thermal_only = true;
   return ps;
+}
+
+PassSettings thermal_pass_settings(const FitSettings& settings) {
+  PassSettings ps = thermal_pass_settings();
+  ps.extensions = settings.extensions.any();
+  return ps;
+}
+
+FreeMask fit_slots(const FitSettings& settings) {
+  FreeMask free = free_slots(settings.known, settings.nuisance);
+  free_extensions(settings.extensions, free);
+  return free;
 }
 
 FreeMask mechanical_slots(const std::array<bool, kThetaSize>& known) {
@@ -37,13 +53,14 @@ FreeMask mechanical_slots(const std::array<bool, kThetaSize>& known) {
 FreeMask mechanical_slots(const FitSettings& settings) {
   FreeMask free = mechanical_slots(settings.known);
   free[kXZeroSlot] = !settings.nuisance.x_zero.fixed;
+  free[kStiffnessSofteningSlot] = settings.extensions.stiffness_softening != ExtensionMode::off;
   return free;
 }
 
 StopReason fit_thermal(FitContext& ctx, FitState& state) {
   const Coordinates c(thermal_slots(ctx.settings), state.p);
   const StageResult r =
-      run_stage(ctx.window, c, thermal_pass_settings(), ctx.max_iterations, ctx.budget);
+      run_stage(ctx.window, c, thermal_pass_settings(ctx.settings), ctx.max_iterations, ctx.budget);
   state.iterations += r.iterations;
   if (r.pass.finite) {
     state.p = r.p;
@@ -58,6 +75,7 @@ StopReason fit_mechanical(FitContext& ctx, FitState& state) {
   const Coordinates c(mechanical_slots(ctx.settings), state.p);
   PassSettings ps;
   ps.weight = {1.0, 0.0};
+  ps.extensions = ctx.settings.extensions.any();
   const StageResult r = run_stage(ctx.window, c, ps, ctx.max_iterations, ctx.budget, state.range);
   state.iterations += r.iterations;
   if (r.pass.finite) {

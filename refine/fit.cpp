@@ -56,6 +56,12 @@ void take_progress(const FitContext& ctx, const FitState& state, FitResult& resu
   result.nuisance.ambient_drift = {!n.ambient_drift.fixed, state.p[kAmbientDriftSlot], 0.0};
   // Not modelled yet: held at its setting (docs/numerics.md, "Nuisance terms").
   result.nuisance.sensor_lag = {false, n.sensor_lag.fixed ? n.sensor_lag.value : 0.0, 0.0};
+  for (const ExtensionSlot& e : kExtensionTable) {
+    ExtensionEstimate& out = result.extensions.*e.estimate;
+    out.mode = ctx.settings.extensions.*e.mode;
+    out.kept = out.mode != ExtensionMode::off;
+    out.value = state.p[e.slot];
+  }
 }
 
 }  // namespace
@@ -100,11 +106,8 @@ void conclude(FitContext& ctx, const FitState& state, StopReason stop, FitResult
   result.message = result.stop == StopReason::none ? state.joint.message : to_text(result.stop);
 }
 
-namespace {
-
-// fit() on a window whose voltage timing is WindowSample's (refine/voltage_timing.hpp).
-FitResult fit_prepared(std::span<const WindowSample> window, const Vector6& theta_start,
-                       const FitSettings& settings) {
+FitResult fit_staged(std::span<const WindowSample> window, const Vector6& theta_start,
+                     const FitSettings& settings) {
   FitResult result;
   result.theta = theta_start;
   result.samples = window.size();
@@ -126,6 +129,21 @@ FitResult fit_prepared(std::span<const WindowSample> window, const Vector6& thet
   if (stop == StopReason::none) stop = fit_joint(ctx, state);
   conclude(ctx, state, stop, result);
   return result;
+}
+
+namespace {
+
+bool has_automatic(const ExtensionSettings& e) {
+  return e.resistance_tempco == ExtensionMode::automatic ||
+         e.stiffness_softening == ExtensionMode::automatic ||
+         e.cooling_tempco == ExtensionMode::automatic;
+}
+
+// fit() on a window whose voltage timing is WindowSample's (refine/voltage_timing.hpp).
+FitResult fit_prepared(std::span<const WindowSample> window, const Vector6& theta_start,
+                       const FitSettings& settings) {
+  return has_automatic(settings.extensions) ? select_extensions(window, theta_start, settings)
+                                            : fit_staged(window, theta_start, settings);
 }
 
 // The full staged fit (without FitSettings::warm).

@@ -65,10 +65,21 @@ const char* to_text(ExtensionMode mode) noexcept;  // kExtensionModeNames
 //   resistance_tempco   ρ (1/°C): R = R0·(1 + ρT̄), the heating θ6·V²/(1 + ρT̄)
 //   stiffness_softening κ (1/°C): k = k0·(1 − κT̄), a force +θ3·κ·T̄·x
 //   cooling_tempco      γ (1/°C): λ = λ0·(1 + γT̄), the cooling −θ5·(1 + γT̄)·T̄
+// Their coefficients as the model simulator uses them; all 0 is the paper's model.
+struct Tempcos {
+  double rho = 0.0, kappa = 0.0, gamma = 0.0;
+  bool any() const noexcept { return rho != 0.0 || kappa != 0.0 || gamma != 0.0; }
+  bool thermal() const noexcept { return rho != 0.0 || gamma != 0.0; }
+};
+
 struct ExtensionSettings {
   ExtensionMode resistance_tempco = ExtensionMode::off;
   ExtensionMode stiffness_softening = ExtensionMode::off;
   ExtensionMode cooling_tempco = ExtensionMode::off;
+  bool any() const noexcept {
+    return resistance_tempco != ExtensionMode::off || stiffness_softening != ExtensionMode::off ||
+           cooling_tempco != ExtensionMode::off;
+  }
 };
 
 // A nuisance term as the fit left it: estimated (with its standard deviation) or held.
@@ -104,5 +115,11 @@ struct ExtensionEstimate {
 struct Extensions {
   ExtensionEstimate resistance_tempco, stiffness_softening, cooling_tempco;
 };
+
+// The coefficients a fit's model ran with (0 for an extension it did not keep).
+inline Tempcos tempcos_of(const Extensions& e) noexcept {
+  const auto value = [](const ExtensionEstimate& x) { return x.kept ? x.value : 0.0; };
+  return {value(e.resistance_tempco), value(e.stiffness_softening), value(e.cooling_tempco)};
+}
 
 }  // namespace scp::refine

@@ -42,6 +42,10 @@ FitState shifted_state(std::span<const WindowSample> window, const WarmStart& wa
   state.p[kXZeroSlot] = warm.nuisance[0];
   state.p[kAmbientOffsetSlot] = warm.nuisance[1];
   state.p[kAmbientDriftSlot] = warm.nuisance[2];
+  const Tempcos tc = tempcos_of(warm.extensions);
+  state.p[kResistanceTempcoSlot] = tc.rho;
+  state.p[kStiffnessSofteningSlot] = tc.kappa;
+  state.p[kCoolingTempcoSlot] = tc.gamma;
   state.noise.x = warm.noise_variance[0];
   state.noise.tbar = warm.noise_variance[1];
   state.noise.timing = warm.timing_variance;
@@ -57,6 +61,18 @@ FitState shifted_state(std::span<const WindowSample> window, const WarmStart& wa
       [](const WindowSample& a, const WindowSample& b) { return a.tbar < b.tbar; });
   state.range = {lo->tbar - warm.nuisance[1], hi->tbar - warm.nuisance[1]};
   return state;
+}
+
+// The warm refit's extensions as the full fit that chose them reported them: the modes asked
+// for and, for `auto`, the criterion that decided.
+void carry_choice(const Extensions& chosen, const ExtensionSettings& asked, Extensions& out) {
+  for (const ExtensionSlot& e : kExtensionTable) {
+    ExtensionEstimate& o = out.*e.estimate;
+    const ExtensionEstimate& c = chosen.*e.estimate;
+    o.mode = asked.*e.mode;
+    o.criterion = c.criterion;
+    o.criterion_difference = c.criterion_difference;
+  }
 }
 
 FitResult declined(FitResult& result, WarmFallback why) {
@@ -86,7 +102,18 @@ WarmStart warm_start(const FitResult& fit, const FitSettings& settings, const Wi
   w.input_delay_sigma_s = fit.input_delay_sigma_s;
   w.input_delay_sigma_inflation = fit.input_delay_sigma_inflation;
   w.voltage_interval = fit.voltage_interval;
+  w.extensions = fit.extensions;
   return w;
+}
+
+FitSettings with_chosen_extensions(const FitSettings& settings, const Extensions& chosen) {
+  FitSettings out = settings;
+  for (const ExtensionSlot& e : kExtensionTable) {
+    ExtensionMode& mode = out.extensions.*e.mode;
+    if (mode == ExtensionMode::automatic)
+      mode = (chosen.*e.estimate).kept ? ExtensionMode::on : ExtensionMode::off;
+  }
+  return out;
 }
 
 void shift(WarmStart& warm, const WindowSample& from, const WindowSample& next) noexcept {
@@ -94,7 +121,8 @@ void shift(WarmStart& warm, const WindowSample& from, const WindowSample& next) 
       prepared_sample(from, next, warm.settings.voltage_hold, warm.voltage_interval);
   ModelState s{warm.state[0], warm.state[1], warm.state[2]};
   ThermalCache cache;
-  advance_interval(warm.theta, warm.at, to, warm.input_delay_s, s, cache);
+  advance_interval(warm.theta, warm.at, to, warm.input_delay_s, s, cache, nullptr,
+                   tempcos_of(warm.extensions));
   warm.state = {s.x, s.xdot, s.tbar};
   warm.nuisance[1] += warm.nuisance[2] * (to.t - warm.at.t);
   warm.at = to;
@@ -110,6 +138,29 @@ WarmFallback applicable(const WarmStart& warm, std::span<const WindowSample> win
   return WarmFallback::none;
 }
 
+FitResult joint_refit(std::span<const WindowSample> prepared, const WarmStart& from,
+                      const FitSettings& settings, int max_iterations) {
+  FitResult result;
+  result.theta = from.theta;
+  result.voltage_interval = from.voltage_interval;
+  result.samples = prepared.size();
+  result.t_begin = prepared.front().t;
+  result.t_end = prepared.back().t;
+  FitContext ctx(prepared, settings);
+  ctx.max_iterations = std::min(ctx.max_iterations, max_iterations);
+  FitState state = shifted_state(prepared, from, settings);
+  if (state.delay.ok) ctx.budget.set_input_delay(state.delay.delay);
+  const StopReason stop = fit_joint(ctx, state);
+  if (stop == StopReason::none && !state.joint.converged) {
+    result.iterations = state.iterations;
+    result.evaluations = ctx.budget.evaluations();
+    result.message = state.joint.message;
+    return result;
+  }
+  conclude(ctx, state, stop, result);
+  return result;
+}
+
 FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
                 const FitSettings& settings) {
   FitResult result;
@@ -119,23 +170,11 @@ FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
   std::vector<WindowSample> storage;
   const std::span<const WindowSample> prepared =
       prepare_window(window, settings.voltage_hold, warm.voltage_interval, storage);
-  result.voltage_interval = warm.voltage_interval;
-  result.samples = prepared.size();
-  result.t_begin = prepared.front().t;
-  result.t_end = prepared.back().t;
-
-  FitContext ctx(prepared, settings);
-  ctx.max_iterations = std::min(ctx.max_iterations, kWarmIterations);
-  FitState state = shifted_state(prepared, warm, settings);
-  if (state.delay.ok) ctx.budget.set_input_delay(state.delay.delay);
-  const StopReason stop = fit_joint(ctx, state);
-  if (stop != StopReason::none || !state.joint.converged) {
-    result.iterations = state.iterations;
-    result.evaluations = ctx.budget.evaluations();
-    return declined(result, WarmFallback::not_converged);
-  }
-  conclude(ctx, state, stop, result);
+  result = joint_refit(prepared, warm, with_chosen_extensions(settings, warm.extensions),
+                       kWarmIterations);
+  if (!result.validated && !result.converged) return declined(result, WarmFallback::not_converged);
   if (!result.converged) return declined(result, WarmFallback::verdict_failed);
+  carry_choice(warm.extensions, settings.extensions, result.extensions);
   result.warm = true;
   result.warm_fallback = WarmFallback::none;
   return result;

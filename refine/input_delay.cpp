@@ -24,7 +24,7 @@ void check_delay(std::span<const WindowSample> window, const FreeMask& free,
                  const FitSettings& settings) {
   const double h = out.sigma;
   if (!(h > 0.0) || !(var_t > 0.0) || out.delay - h < lowest) return;
-  PassSettings ps = thermal_pass_settings();
+  PassSettings ps = thermal_pass_settings(settings);
   ps.batches = settings.covariance_batches;
   ps.weight[1] = 1.0 / var_t;
   budget.set_input_delay(out.delay);
@@ -87,8 +87,8 @@ class DelayProfile {
     budget_.set_input_delay(d);
     if (stopped()) return kInfinity;
     coordinates_.base = best.p;
-    const StageResult r =
-        run_stage(ctx_.window, coordinates_, thermal_pass_settings(), ctx_.max_iterations, budget_);
+    const StageResult r = run_stage(ctx_.window, coordinates_, thermal_pass_settings(ctx_.settings),
+                                    ctx_.max_iterations, budget_);
     p_at = r.p;
     return r.pass.finite ? r.pass.cost : kInfinity;
   }

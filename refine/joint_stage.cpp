@@ -64,6 +64,7 @@ bool rescore_variances(const FitContext& ctx, const PassResult& pass, NoiseVaria
 PassSettings joint_pass_settings(const FitSettings& settings, const FitState& state) {
   PassSettings ps;
   ps.weight = {1.0 / state.noise.x, 1.0 / state.noise.tbar};
+  ps.extensions = settings.extensions.any();
   const bool timing = settings.sample_timing_jitter;
   ps.timing = timing;
   ps.timing_variance = state.noise.timing;
@@ -76,7 +77,7 @@ PassSettings joint_pass_settings(const FitSettings& settings, const FitState& st
 }
 
 StopReason fit_joint(FitContext& ctx, FitState& state) {
-  const FreeMask free = free_slots(ctx.settings.known, ctx.settings.nuisance);
+  const FreeMask free = fit_slots(ctx.settings);
   const std::array<std::size_t, 2> parameters = parameters_per_channel(free);
   const bool timing = ctx.settings.sample_timing_jitter;
   // With the timing variance to estimate too, more rounds: it starts from 0.

@@ -31,9 +31,9 @@ int pieces_between(const WindowSample& prev, const WindowSample& cur, Piece out[
   return 1;
 }
 
-int substeps(const Vector6& theta, double tbar, double tau) noexcept {
+int substeps(const Vector6& theta, double tbar, double tau, double kappa) noexcept {
   const double rho = std::abs(theta[kDamping] + theta[kDampingSlope] * tbar) +
-                     std::sqrt(std::abs(theta[kStiffness]));
+                     std::sqrt(std::abs(theta[kStiffness] * (1.0 - kappa * tbar)));
   const double n = std::ceil(tau * rho / kMaxStiffnessPerSubstep);
   if (!(n > 1.0)) return 1;
   return n < 1e5 ? static_cast<int>(n) : 100000;
@@ -59,22 +59,50 @@ ThermalPiece thermal_piece(double theta5, double tau) noexcept {
   return tp;
 }
 
+ThermalStep thermal_step(const Vector6& theta, const Tempcos& tc, const Piece& piece, double tbar,
+                         ThermalCache& cache, ThermalPiece& tp) noexcept {
+  if (!tc.thermal()) {
+    tp = cache.get(theta[kCooling], piece.tau);
+    return {tp.decay * tbar + theta[kHeating] * tp.input(piece),
+            tp.mean_of_start * tbar + theta[kHeating] * tp.mean(piece)};
+  }
+  const ThermalLinearization l = linearize_thermal(theta, tc, tbar, piece.u);
+  tp = cache.get(l.a, piece.tau);
+  const double ramp_end = tp.gain1 * piece.du + tp.gain2 * piece.ddu;
+  const double ramp_mean = tp.mean1 * piece.du + tp.mean2 * piece.ddu;
+  return {tbar + tp.gain * l.f0 + l.b * ramp_end, tbar + tp.mean_of_input * l.f0 + l.b * ramp_mean};
+}
+
 ThermalPiece advance_thermal_piece(const Vector6& theta, const Piece& piece, ModelState& state,
-                                   ThermalCache& cache) noexcept {
-  const ThermalPiece& tp = cache.get(theta[kCooling], piece.tau);
-  state.tbar = tp.decay * state.tbar + theta[kHeating] * tp.input(piece);
+                                   ThermalCache& cache, const Tempcos& tc) noexcept {
+  ThermalPiece tp;
+  state.tbar = thermal_step(theta, tc, piece, state.tbar, cache, tp).end;
   return tp;
 }
 
+namespace {
+
+// Ω of the fourth-order Magnus step with the stiffness θ3·(1 − κT̄) (Tempcos::kappa ≠ 0): with
+// s̄ = θ3(1 − κT̄avg), α = θ3κ·dT̄/dt, A' = [[0, 0], [α, −q]] and [A', Ā] = [[−α, q], [q·s̄ + c0·α,
+// α]].
+Matrix2 softening_omega(double tau, double k, double c0, double q, double th3, double kappa,
+                        double tavg, double tdot) noexcept {
+  const double sbar = th3 * (1.0 - kappa * tavg), alpha = th3 * kappa * tdot;
+  Matrix2 omega;
+  omega << -k * alpha, tau + k * q, -tau * sbar + k * (q * sbar + c0 * alpha),
+      -tau * c0 + k * alpha;
+  return omega;
+}
+
+}  // namespace
+
 MechanicalPiece advance_piece(const Vector6& theta, const Piece& piece, ModelState& s,
-                              ThermalCache& cache) noexcept {
+                              ThermalCache& cache, const Tempcos& tc) noexcept {
   MechanicalPiece mp;
   const double tau = piece.tau;
   const double ta = s.tbar;
-  mp.thermal = cache.get(theta[kCooling], tau);
-  const ThermalPiece& tp = mp.thermal;
-  const double tb = tp.decay * ta + theta[kHeating] * tp.input(piece);
-  const double tavg = tp.mean_of_start * ta + theta[kHeating] * tp.mean(piece);
+  const ThermalStep step = thermal_step(theta, tc, piece, ta, cache, mp.thermal);
+  const double tb = step.end, tavg = step.mean;
   // T̄ is exponential inside the piece; its slope at the middle differs from the chord's by
   // O(τ²), which enters Ω only at O(τ⁵).
   const double tdot = (tb - ta) / tau;
@@ -86,7 +114,11 @@ MechanicalPiece advance_piece(const Vector6& theta, const Piece& piece, ModelSta
   const double k = tau * tau * tau / 12.0;
   // [A', Ā] = q·[[0, 1], [θ3, 0]] with A' = [[0, 0], [0, −q]].
   Matrix2 omega;
-  omega << 0.0, tau + k * mp.q, -tau * th3 + k * mp.q * th3, -tau * mp.c0;
+  if (tc.kappa == 0.0) {
+    omega << 0.0, tau + k * mp.q, -tau * th3 + k * mp.q * th3, -tau * mp.c0;
+  } else {
+    omega = softening_omega(tau, k, mp.c0, mp.q, th3, tc.kappa, tavg, tdot);
+  }
   // f̄ = [0, −θ4 T̄avg], f' = [0, −θ4 dT̄/dt]; A'f = [0, −q·f1].
   const double fbar = -th4 * tavg, fslope = -th4 * tdot;
   const double w1 = tau * fbar - k * mp.q * fbar;
@@ -106,14 +138,14 @@ MechanicalPiece advance_piece(const Vector6& theta, const Piece& piece, ModelSta
 }
 
 long advance_interval(const Vector6& theta, const WindowSample& prev, const WindowSample& cur,
-                      double input_delay, ModelState& state, ThermalCache& cache,
-                      double* u_end) noexcept {
+                      double input_delay, ModelState& state, ThermalCache& cache, double* u_end,
+                      const Tempcos& tc) noexcept {
   Piece pieces[2];
   const int n = pieces_between(prev, cur, pieces, input_delay);
   long taken = 0;
   for (int i = 0; i < n; ++i) {
-    const int m = substeps(theta, state.tbar, pieces[i].tau);
-    for (int j = 0; j < m; ++j) advance_piece(theta, sub_piece(pieces[i], j, m), state, cache);
+    const int m = substeps(theta, state.tbar, pieces[i].tau, tc.kappa);
+    for (int j = 0; j < m; ++j) advance_piece(theta, sub_piece(pieces[i], j, m), state, cache, tc);
     taken += m;
     if (u_end != nullptr) *u_end = end_input(pieces[i]);
   }
@@ -121,13 +153,14 @@ long advance_interval(const Vector6& theta, const WindowSample& prev, const Wind
 }
 
 void simulate(std::span<const WindowSample> window, const Vector6& theta,
-              const InitialState& initial, std::span<ModelState> out, double input_delay) noexcept {
+              const InitialState& initial, std::span<ModelState> out, double input_delay,
+              const Tempcos& tc) noexcept {
   if (window.empty() || out.size() < window.size()) return;
   ModelState s{initial[0], initial[1], initial[2]};
   out[0] = s;
   ThermalCache cache;
   for (std::size_t k = 1; k < window.size(); ++k) {
-    advance_interval(theta, window[k - 1], window[k], input_delay, s, cache);
+    advance_interval(theta, window[k - 1], window[k], input_delay, s, cache, nullptr, tc);
     out[k] = s;
   }
 }

@@ -93,7 +93,8 @@ ThermalPiece thermal_piece(double theta5, double tau) noexcept;
 // uncut pieces would leave x further from the plant than the 1e-11 that
 // tests/refine/test_model_simulator.cpp allows.
 // Capped at 10⁵ (a gap of minutes in a record).
-int substeps(const Vector6& theta, double tbar, double tau) noexcept;
+// `kappa`: the stiffness's softening (Tempcos), which moves ρ(A) with T̄.
+int substeps(const Vector6& theta, double tbar, double tau, double kappa = 0.0) noexcept;
 inline constexpr double kMaxStiffnessPerSubstep = 1.5;  // the τ·ρ(A) bound of substeps()
 
 // The last ThermalPiece computed: a uniformly sampled window has one τ, so one exp per pass.
@@ -113,6 +114,35 @@ class ThermalCache {
   ThermalPiece piece_;
 };
 
+// The thermal block with the extensions ρ and γ (Tempcos), dT̄/dt = F(T̄, u) with
+//   F = −θ5·(1 + γT̄)·T̄ + θ6·u/(1 + ρT̄),
+// linearized at the piece's start: F0 = F(T̄0, u0), a = −∂F/∂T̄, b = ∂F/∂u. The piece is then the
+// exponential Rosenbrock–Euler step T̄(τ) = T̄0 + τφ1(−aτ)·F0 + b·(the input's change), second
+// order in τ (T̄ changes on the thermal time constant, seconds, against a millisecond's step) and
+// exact where F is linear in T̄ (ρ = γ = 0: a = θ5, the exact step above).
+struct ThermalLinearization {
+  double f0 = 0.0, a = 0.0, b = 0.0;
+};
+inline ThermalLinearization linearize_thermal(const Vector6& theta, const Tempcos& tc, double tbar,
+                                              double u) noexcept {
+  const double heat = 1.0 / (1.0 + tc.rho * tbar);
+  ThermalLinearization l;
+  l.b = theta[kHeating] * heat;
+  l.f0 = -theta[kCooling] * (1.0 + tc.gamma * tbar) * tbar + l.b * u;
+  l.a = theta[kCooling] * (1.0 + 2.0 * tc.gamma * tbar) + l.b * u * tc.rho * heat;
+  return l;
+}
+
+// T̄ at a piece's end and its mean over the piece.
+struct ThermalStep {
+  double end = 0.0, mean = 0.0;
+};
+
+// One piece of the thermal block from T̄ = `tbar`; `tp` receives the ThermalPiece it used (of θ5,
+// or of the linearization's a with tc.thermal()).
+ThermalStep thermal_step(const Vector6& theta, const Tempcos& tc, const Piece& piece, double tbar,
+                         ThermalCache& cache, ThermalPiece& tp) noexcept;
+
 // What one mechanical step used, kept for the sensitivities that ride on it.
 struct MechanicalPiece {
   ExpPhi ef;         // e^Ω, φ1(Ω), φ2(Ω)
@@ -122,25 +152,25 @@ struct MechanicalPiece {
   ThermalPiece thermal;
 };
 
-// Advances `state` over one (sub-)piece with parameters θ.
+// Advances `state` over one (sub-)piece with parameters θ and the extensions' coefficients.
 MechanicalPiece advance_piece(const Vector6& theta, const Piece& piece, ModelState& state,
-                              ThermalCache& cache) noexcept;
+                              ThermalCache& cache, const Tempcos& tc = {}) noexcept;
 
 // Advances `state` over one piece of the thermal block only (x, ẋ untouched).
 ThermalPiece advance_thermal_piece(const Vector6& theta, const Piece& piece, ModelState& state,
-                                   ThermalCache& cache) noexcept;
+                                   ThermalCache& cache, const Tempcos& tc = {}) noexcept;
 
 // Advances `state` (both blocks) from sample `prev` to sample `cur`: the pieces of
 // pieces_between, each cut into the sub-steps of substeps(). Returns the sub-steps taken; `u_end`
 // (if given) receives V² in effect at cur.
 long advance_interval(const Vector6& theta, const WindowSample& prev, const WindowSample& cur,
                       double input_delay, ModelState& state, ThermalCache& cache,
-                      double* u_end = nullptr) noexcept;
+                      double* u_end = nullptr, const Tempcos& tc = {}) noexcept;
 
 // The model's outputs at each sample of `window` (x and T̄; ẋ for tests), from `initial` at the
 // first sample. `out` must hold window.size() states.
 void simulate(std::span<const WindowSample> window, const Vector6& theta,
-              const InitialState& initial, std::span<ModelState> out,
-              double input_delay = 0.0) noexcept;
+              const InitialState& initial, std::span<ModelState> out, double input_delay = 0.0,
+              const Tempcos& tc = {}) noexcept;
 
 }  // namespace scp::refine

@@ -28,7 +28,14 @@ inline constexpr int kModelSlots = 9;
 // sensor's zero (m), added to x; the ambient's offset (°C) and drift (°C/s, from the window's
 // first sample), added to T̄.
 inline constexpr int kXZeroSlot = 9, kAmbientOffsetSlot = 10, kAmbientDriftSlot = 11;
-inline constexpr int kParams = 12;
+// The model's extensions (refine/fit_terms.hpp), seen by the simulation: the heater resistance's
+// temperature coefficient ρ, the stiffness's softening κ, the cooling's coefficient γ (1/°C).
+// Last, so that a fit without them works on the same leading slots as before they existed.
+inline constexpr int kResistanceTempcoSlot = 12, kStiffnessSofteningSlot = 13,
+                     kCoolingTempcoSlot = 14;
+inline constexpr int kFirstExtensionSlot = 12, kExtensionSlots = 3;
+inline constexpr int kParams = 15;
+static_assert(kFirstExtensionSlot + kExtensionSlots == kParams, "the extensions are p's tail");
 
 inline constexpr int kThetaSize = 6;
 inline constexpr int kMechanicalSize = 4;  // θ1..θ4, at the head of θ
@@ -61,10 +68,15 @@ inline FreeMask free_slots(const std::array<bool, kThetaSize>& known,
   return free;
 }
 
+constexpr bool is_extension(int slot) {
+  return slot >= kFirstExtensionSlot && slot < kFirstExtensionSlot + kExtensionSlots;
+}
+
 // Whether a slot moves the model's T̄ (the thermal block does not see x); every slot of the
 // simulation moves x.
 constexpr bool acts_on_tbar(int slot) {
-  return slot == kCooling || slot == kHeating || slot == kTbar0;
+  return slot == kCooling || slot == kHeating || slot == kTbar0 || slot == kResistanceTempcoSlot ||
+         slot == kCoolingTempcoSlot;
 }
 // Whether a slot moves the x or the T̄ the fit compares with the measurement.
 constexpr bool in_x_output(int slot) {
@@ -96,6 +108,30 @@ inline ParamVector param_vector(const estimator::Vector6& theta, const Eigen::Ve
   p.head<kThetaSize>() = theta;
   p.segment<3>(kX0) = initial;
   return p;
+}
+
+// The extensions' coefficients in p (0: the paper's model).
+inline Tempcos tempcos_of(const ParamVector& p) {
+  return {p[kResistanceTempcoSlot], p[kStiffnessSofteningSlot], p[kCoolingTempcoSlot]};
+}
+
+// Each extension's slot, its setting and its estimate, for code that treats them alike.
+struct ExtensionSlot {
+  int slot;
+  ExtensionMode ExtensionSettings::*mode;
+  ExtensionEstimate Extensions::*estimate;
+};
+inline constexpr std::array<ExtensionSlot, kExtensionSlots> kExtensionTable{
+    {{kResistanceTempcoSlot, &ExtensionSettings::resistance_tempco, &Extensions::resistance_tempco},
+     {kStiffnessSofteningSlot, &ExtensionSettings::stiffness_softening,
+      &Extensions::stiffness_softening},
+     {kCoolingTempcoSlot, &ExtensionSettings::cooling_tempco, &Extensions::cooling_tempco}}};
+
+// The slots of the extensions `settings` does not leave out (on or auto).
+inline void free_extensions(const ExtensionSettings& e, FreeMask& free) {
+  free[kResistanceTempcoSlot] = e.resistance_tempco != ExtensionMode::off;
+  free[kStiffnessSofteningSlot] = e.stiffness_softening != ExtensionMode::off;
+  free[kCoolingTempcoSlot] = e.cooling_tempco != ExtensionMode::off;
 }
 
 inline estimator::Vector6 theta_of(const ParamVector& p) {

@@ -31,8 +31,17 @@ constexpr auto row_slots() {
     if (In(s)) slots[static_cast<std::size_t>(i++)] = s;
   return slots;
 }
-constexpr auto kXRowSlots = row_slots<in_x_output>();
-constexpr auto kTbarRowSlots = row_slots<in_tbar_output>();
+constexpr bool in_x_base(int s) {
+  return in_x_output(s) && !is_extension(s);
+}
+constexpr bool in_tbar_base(int s) {
+  return in_tbar_output(s) && !is_extension(s);
+}
+// Without the extensions' slots (PassSettings::extensions false: their columns are 0).
+constexpr auto kXRowSlots = row_slots<in_x_base>();
+constexpr auto kTbarRowSlots = row_slots<in_tbar_base>();
+constexpr auto kXRowSlotsExtended = row_slots<in_x_output>();
+constexpr auto kTbarRowSlotsExtended = row_slots<in_tbar_output>();
 
 // Column Slots[B] of JᵀWJ's upper triangle += c·v over rows Slots[0..B]: a fixed-size segment
 // where the slots are the leading ones (x's row), else term by term.
@@ -59,6 +68,18 @@ inline void add_outer_upper(ParamMatrix& h, const ParamVector& v, double alpha,
 template <const auto& Slots>
 inline void add_outer_upper(ParamMatrix& h, const ParamVector& v, double alpha) noexcept {
   add_outer_upper<Slots>(h, v, alpha, std::make_index_sequence<Slots.size()>{});
+}
+
+// x's and T̄'s rows of one sample into JᵀWJ's upper triangle, over the slots they can touch.
+inline void add_rows(ParamMatrix& h, const ParamVector& jx, double wx, const ParamVector& jt,
+                     double wt, bool extended) noexcept {
+  if (extended) {
+    if (wx != 0.0) add_outer_upper<kXRowSlotsExtended>(h, jx, wx);
+    if (wt != 0.0) add_outer_upper<kTbarRowSlotsExtended>(h, jt, wt);
+    return;
+  }
+  if (wx != 0.0) add_outer_upper<kXRowSlots>(h, jx, wx);
+  if (wt != 0.0) add_outer_upper<kTbarRowSlots>(h, jt, wt);
 }
 
 // Overlapping batch means: Σ over windows of B consecutive scores of (Σ s)(Σ s)ᵀ/B equals the
@@ -257,6 +278,7 @@ bool give_up(const PassSettings& settings, std::size_t k, long substeps, const M
 bool cost_only_pass(std::span<const WindowSample> window, const ParamVector& p,
                     const PassSettings& settings, ResidualSums& sums) {
   const Vector6 theta = theta_of(p);
+  const Tempcos tc = tempcos_of(p);
   const InitialState initial = initial_state_of(p);
   PassResult& r = sums.r;
   ModelState s{initial[0], initial[1], initial[2]};
@@ -266,10 +288,10 @@ bool cost_only_pass(std::span<const WindowSample> window, const ParamVector& p,
     if (k > 0 && settings.thermal_only) {
       Piece pieces[2];
       const int n = pieces_between(window[k - 1], window[k], pieces, settings.input_delay);
-      for (int i = 0; i < n; ++i) advance_thermal_piece(theta, pieces[i], s, cache);
+      for (int i = 0; i < n; ++i) advance_thermal_piece(theta, pieces[i], s, cache, tc);
     } else if (k > 0) {
-      r.substeps +=
-          advance_interval(theta, window[k - 1], window[k], settings.input_delay, s, cache);
+      r.substeps += advance_interval(theta, window[k - 1], window[k], settings.input_delay, s,
+                                     cache, nullptr, tc);
     }
     if (give_up(settings, k, r.substeps, s, r)) return true;
     sums.add(k, window[k], s, rx, rt);
@@ -282,13 +304,14 @@ bool cost_only_pass(std::span<const WindowSample> window, const ParamVector& p,
 struct Reference {
   Reference(const PassSettings& settings, bool with_landing_filter)
       : theta(theta_of(settings.timing_reference)),
+        tc(tempcos_of(settings.timing_reference)),
         state{settings.timing_reference[kX0], settings.timing_reference[kXdot0],
               settings.timing_reference[kTbar0]},
         landing(with_landing_filter) {}
 
   void advance(const WindowSample& prev, const WindowSample& cur, const PassSettings& settings) {
     const ModelState before = state;
-    advance_interval(theta, prev, cur, settings.input_delay, state, cache, &u);
+    advance_interval(theta, prev, cur, settings.input_delay, state, cache, &u, tc);
     if (!landing) return;
     const double du = cur.voltage * cur.voltage - prev.voltage * prev.voltage;
     filter.predict(theta, before, state, cur.t - prev.t,
@@ -306,10 +329,11 @@ struct Reference {
 
   // The trajectory's velocity g = (ẋ, dT̄/dt) at the sample.
   Eigen::Vector2d velocity() const {
-    return {state.xdot, -theta[kCooling] * state.tbar + theta[kHeating] * u};
+    return {state.xdot, linearize_thermal(theta, tc, state.tbar, u).f0};
   }
 
   Vector6 theta;
+  Tempcos tc;
   ModelState state;
   ThermalCache cache;
   double u = 0.0;  // V² in effect at the sample
@@ -354,8 +378,7 @@ WeightedSample add_timing_weighted(const PassSettings& settings, double wx, doub
   const double omega = outlier_weight(settings.outlier_threshold, ref.x_residual(sample, settings),
                                       ref.tbar_residual(sample, settings, t0), w_xx, w_xt, w_tt);
   if (omega < 1.0) ++r.outliers;
-  if (w_xx != 0.0) add_outer_upper<kXRowSlots>(r.jtwj, jx, omega * w_xx);
-  if (w_tt != 0.0) add_outer_upper<kTbarRowSlots>(r.jtwj, jt, omega * w_tt);
+  add_rows(r.jtwj, jx, omega * w_xx, jt, omega * w_tt, settings.extensions);
   if (w_xt != 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, jt, omega * w_xt);
   const Eigen::Vector2d e = w * Eigen::Vector2d(rx, rt);  // W r
   WeightedSample out;
@@ -391,7 +414,8 @@ bool jacobian_pass(std::span<const WindowSample> window, const ParamVector& p,
                    const PassSettings& settings, ResidualSums& sums) {
   PassResult& r = sums.r;
   const double wx = sums.wx, wt = sums.wt;
-  SensitivitySimulator sim(theta_of(p), initial_state_of(p), settings.thermal_only);
+  SensitivitySimulator sim(theta_of(p), initial_state_of(p), settings.thermal_only, tempcos_of(p),
+                           settings.extensions);
   const bool timing = settings.timing && !settings.thermal_only;
   // PassSettings::landing_jitter: the Kalman filter on [x, ẋ, T̄] (refine/landing_filter.hpp).
   Reference ref(settings, timing && settings.landing_jitter && wt > 0.0);
@@ -424,8 +448,7 @@ bool jacobian_pass(std::span<const WindowSample> window, const ParamVector& p,
     }
     WeightedSample sample;
     if (!timing) {
-      if (wx > 0.0) add_outer_upper<kXRowSlots>(r.jtwj, jx, wx);
-      if (wt > 0.0) add_outer_upper<kTbarRowSlots>(r.jtwj, jt, wt);
+      add_rows(r.jtwj, jx, wx, jt, wt, settings.extensions);
       sample.score = wx * rx * jx + wt * rt * jt;
     } else {
       sample = add_timing_weighted(settings, wx, wt, ref, window[k], sums.t0, rx, rt, jx, jt, r);

@@ -21,6 +21,9 @@ struct PassSettings {
   bool jacobian = true;
   // Simulate T̄ only (the thermal stage: θ1..θ4, x0, ẋ0 play no part).
   bool thermal_only = false;
+  // Jacobian passes: also the sensitivities to the extensions' slots (a fit that estimates one;
+  // without, their columns of J are left 0). The simulation runs with p's extensions either way.
+  bool extensions = false;
   // > 0: also accumulate the Bartlett long-run covariance of the score with this bandwidth
   // (lags + 1), for the Newey–West covariance.
   int hac_bandwidth = 0;

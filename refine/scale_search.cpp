@@ -27,8 +27,13 @@ StopReason fit_ratios(FitContext& ctx, FitState& state, std::span<const WindowSa
   state.p.head<kMechanicalSize>() *= kQuasiStatic;
   FreeMask ratios{};
   for (const int i : {kDamping, kDampingSlope, kThermalForce, kX0, kXdot0}) ratios[i] = true;
+  // The stiffness's softening is a ratio too (it scales with θ3, not with the inertia), and a
+  // scale placed without it on data that need it runs away (the paper's model there is 99 % off).
+  ratios[kStiffnessSofteningSlot] =
+      ctx.settings.extensions.stiffness_softening != ExtensionMode::off;
   PassSettings ps;
   ps.weight = {1.0, 0.0};
+  ps.extensions = ratios[kStiffnessSofteningSlot];
   const StageResult r = run_stage(head, Coordinates(ratios, state.p), ps,
                                   std::min(ctx.max_iterations, 50), ctx.budget, state.range);
   state.iterations += r.iterations;

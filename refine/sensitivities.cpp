@@ -1,11 +1,16 @@
 #include "refine/sensitivities.hpp"
 
+#include <array>
+
 namespace scp::refine {
 
 SensitivitySimulator::SensitivitySimulator(const Vector6& theta, const InitialState& initial,
-                                           bool thermal_only) noexcept
+                                           bool thermal_only, const Tempcos& tc,
+                                           bool extended) noexcept
     : theta_(theta),
       thermal_only_(thermal_only),
+      tc_(tc),
+      extended_(extended),
       state_{initial[0], initial[1], initial[2]},
       dx_(ParamVector::Zero()),
       dxdot_(ParamVector::Zero()),
@@ -22,23 +27,47 @@ void SensitivitySimulator::advance(const WindowSample& prev, const WindowSample&
   for (int i = 0; i < n; ++i) {
     if (thermal_only_) {
       const double tbar_before = state_.tbar;
-      const ThermalPiece tp = advance_thermal_piece(theta_, pieces[i], state_, cache_);
+      const ThermalPiece tp = advance_thermal_piece(theta_, pieces[i], state_, cache_, tc_);
       advance_thermal_sensitivities(pieces[i], tp, tbar_before);
       continue;
     }
-    const int m = substeps(theta_, state_.tbar, pieces[i].tau);
+    const int m = substeps(theta_, state_.tbar, pieces[i].tau, tc_.kappa);
     substeps_ += m;
     for (int j = 0; j < m; ++j) {
       const Piece sub = sub_piece(pieces[i], j, m);
       const ModelState before = state_;
-      const MechanicalPiece mp = advance_piece(theta_, sub, state_, cache_);
+      const MechanicalPiece mp = advance_piece(theta_, sub, state_, cache_, tc_);
       advance_piece_sensitivities(sub, mp, before);
     }
   }
 }
 
+void SensitivitySimulator::advance_extended_thermal_sensitivities(const Piece& piece,
+                                                                  const ThermalPiece& tp,
+                                                                  double tbar_before) noexcept {
+  // Ṡ_p = −a·S_p + ∂F/∂p (a at the piece's start, as the state's step), ∂F/∂p linear between
+  // the piece's ends: S_p(τ) = e^{−aτ}S_p(0) + τφ1·g_p(0) + τφ2·(g_p(τ) − g_p(0)).
+  const auto forcing = [this](double tbar, double u) {
+    const double heat = 1.0 / (1.0 + tc_.rho * tbar);
+    return Eigen::Vector4d(-(1.0 + tc_.gamma * tbar) * tbar, u * heat,
+                           -theta_[kHeating] * u * tbar * heat * heat,
+                           -theta_[kCooling] * tbar * tbar);
+  };
+  const Eigen::Vector4d g0 = forcing(tbar_before, piece.u);
+  const Eigen::Vector4d g1 = forcing(state_.tbar, end_input(piece));
+  const Eigen::Vector4d drive = tp.gain * g0 + tp.mean_of_input * (g1 - g0);
+  constexpr std::array<int, 4> slots{kCooling, kHeating, kResistanceTempcoSlot, kCoolingTempcoSlot};
+  for (std::size_t i = 0; i < slots.size(); ++i)
+    dtbar_[slots[i]] = tp.decay * dtbar_[slots[i]] + drive[static_cast<Eigen::Index>(i)];
+  dtbar_[kTbar0] *= tp.decay;
+}
+
 void SensitivitySimulator::advance_thermal_sensitivities(const Piece& piece, const ThermalPiece& tp,
                                                          double tbar_before) noexcept {
+  if (extended_) {
+    advance_extended_thermal_sensitivities(piece, tp, tbar_before);
+    return;
+  }
   // T̄(τ) = e^{−θ5τ}T̄(0) + τφ1(−θ5τ)·θ6·u, differentiated exactly.
   for (int p : {kCooling, kHeating, kTbar0}) dtbar_[p] *= tp.decay;
   dtbar_[kCooling] +=
@@ -49,26 +78,45 @@ void SensitivitySimulator::advance_thermal_sensitivities(const Piece& piece, con
 void SensitivitySimulator::advance_piece_sensitivities(const Piece& piece,
                                                        const MechanicalPiece& mp,
                                                        const ModelState& a) noexcept {
-  using Slots = Eigen::Matrix<double, kModelSlots, 1>;  // the slots the simulation sees
   const Eigen::Vector3d dtbar_a(dtbar_[kCooling], dtbar_[kHeating], dtbar_[kTbar0]);
+  const Eigen::Vector2d ext_a(dtbar_[kResistanceTempcoSlot], dtbar_[kCoolingTempcoSlot]);
   advance_thermal_sensitivities(piece, mp.thermal, a.tbar);
+  advance_mechanical_sensitivities(mp, a, dtbar_a, ext_a);
+}
+
+void SensitivitySimulator::advance_mechanical_sensitivities(const MechanicalPiece& mp,
+                                                            const ModelState& a,
+                                                            const Eigen::Vector3d& dtbar_a,
+                                                            const Eigen::Vector2d& ext_a) noexcept {
+  using Slots = Eigen::Matrix<double, kModelSlots, 1>;  // θ and the initial state
+  using Extension = Eigen::Matrix<double, kExtensionSlots, 1>;
   const ModelState& b = state_;
-  const double th2 = theta_[kDampingSlope], th4 = theta_[kThermalForce];
+  const double th2 = theta_[kDampingSlope], th3 = theta_[kStiffness], th4 = theta_[kThermalForce];
+  const double kappa = tc_.kappa;
+  // ∂/∂T̄ of ẍ = −θ3(1 − κT̄)x − (θ1 + θ2T̄)ẋ − θ4T̄.
+  const auto through_tbar = [&](const ModelState& s) noexcept {
+    return -(th2 * s.xdot + th4) + th3 * kappa * s.x;
+  };
   // G_p (second row; the first row of G is 0 because dx/dt = ẋ holds for every p); dt: ∂T̄/∂θ5,
-  // ∂T̄/∂θ6, ∂T̄/∂T̄0, the only non-zero ones.
+  // ∂T̄/∂θ6, ∂T̄/∂T̄0, the only non-zero ones of θ and the initial state.
   auto forcing = [&](const ModelState& s, const Eigen::Vector3d& dt) noexcept {
     Slots g;
     g[kDamping] = -s.xdot;
     g[kDampingSlope] = -s.tbar * s.xdot;
-    g[kStiffness] = -s.x;
+    g[kStiffness] = -(1.0 - kappa * s.tbar) * s.x;
     g[kThermalForce] = -s.tbar;
-    const double through_tbar = -(th2 * s.xdot + th4);
-    g[kCooling] = through_tbar * dt[0];
-    g[kHeating] = through_tbar * dt[1];
+    const double via = through_tbar(s);
+    g[kCooling] = via * dt[0];
+    g[kHeating] = via * dt[1];
     g[kX0] = 0.0;
     g[kXdot0] = 0.0;
-    g[kTbar0] = through_tbar * dt[2];
+    g[kTbar0] = via * dt[2];
     return g;
+  };
+  // The extensions' slots: ρ and γ through T̄ (ext: ∂T̄/∂ρ, ∂T̄/∂γ), κ directly.
+  auto extension_forcing = [&](const ModelState& s, const Eigen::Vector2d& ext) noexcept {
+    const double via = through_tbar(s);
+    return Extension(via * ext[0], th3 * s.tbar * s.x, via * ext[1]);
   };
   const Slots ga = forcing(a, dtbar_a);
   const Slots gb = forcing(b, Eigen::Vector3d(dtbar_[kCooling], dtbar_[kHeating], dtbar_[kTbar0]));
@@ -85,6 +133,14 @@ void SensitivitySimulator::advance_piece_sensitivities(const Piece& piece,
   const Slots sx = dx_.head<kModelSlots>(), sv = dxdot_.head<kModelSlots>();
   dx_.head<kModelSlots>() = e(0, 0) * sx + e(0, 1) * sv + f1(0, 1) * am + f2(0, 1) * bm;
   dxdot_.head<kModelSlots>() = e(1, 0) * sx + e(1, 1) * sv + f1(1, 1) * am + f2(1, 1) * bm;
+  if (!extended_) return;
+  const Extension ea = scale * extension_forcing(a, ext_a);
+  const Extension eb = scale * extension_forcing(b, Eigen::Vector2d(dtbar_[kResistanceTempcoSlot],
+                                                                    dtbar_[kCoolingTempcoSlot])) -
+                       ea;
+  const Extension ex = dx_.tail<kExtensionSlots>(), ev = dxdot_.tail<kExtensionSlots>();
+  dx_.tail<kExtensionSlots>() = e(0, 0) * ex + e(0, 1) * ev + f1(0, 1) * ea + f2(0, 1) * eb;
+  dxdot_.tail<kExtensionSlots>() = e(1, 0) * ex + e(1, 1) * ev + f1(1, 1) * ea + f2(1, 1) * eb;
 }
 
 }  // namespace scp::refine

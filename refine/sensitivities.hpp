@@ -6,7 +6,9 @@
 // e^Ω and φ1(Ω), with G taken linear between the piece's ends (trapezoid mean and chord slope).
 // That is second-order accurate instead of the state's fourth: J only steers Gauss–Newton and
 // feeds the covariance, while the residual, and so the fixed point of the fit, comes from the
-// exact simulation. ∂T̄/∂(θ5, θ6, T̄0) is exact.
+// exact simulation. ∂T̄/∂(θ5, θ6, T̄0) is exact for the paper's model; with the extensions
+// (`extended`) every ∂T̄/∂p rides on the thermal linearization's e^{−aτ} with its forcing ∂F/∂p
+// linear over the piece, second order too.
 //
 // The outputs are x and T̄. ẋ is simulated (it is part of the state) but not fitted: a velocity
 // sensor adds almost no information on θ (PAPER-NOTES), and most benches lack one.
@@ -19,8 +21,10 @@ namespace scp::refine {
 class SensitivitySimulator {
  public:
   // thermal_only: advance T̄ and its sensitivities only (the thermal stage of the fit).
-  SensitivitySimulator(const Vector6& theta, const InitialState& initial,
-                       bool thermal_only = false) noexcept;
+  // tc: the extensions' coefficients the model runs with; extended: also carry the sensitivities
+  // to them (the slots kFirstExtensionSlot...), which a fit that holds them at 0 does not need.
+  SensitivitySimulator(const Vector6& theta, const InitialState& initial, bool thermal_only = false,
+                       const Tempcos& tc = {}, bool extended = false) noexcept;
 
   // Advances from sample `prev` to sample `cur`, the voltage switching `input_delay` later than
   // recorded (pieces_between).
@@ -49,9 +53,16 @@ class SensitivitySimulator {
                                    const ModelState& before) noexcept;
   void advance_thermal_sensitivities(const Piece& piece, const ThermalPiece& tp,
                                      double tbar_before) noexcept;
+  void advance_extended_thermal_sensitivities(const Piece& piece, const ThermalPiece& tp,
+                                              double tbar_before) noexcept;
+  void advance_mechanical_sensitivities(const MechanicalPiece& mp, const ModelState& a,
+                                        const Eigen::Vector3d& dtbar_a,
+                                        const Eigen::Vector2d& ext_a) noexcept;
 
   Vector6 theta_;
   bool thermal_only_;
+  Tempcos tc_;
+  bool extended_;
   ModelState state_;
   ThermalCache cache_;
   ParamVector dx_, dxdot_, dtbar_;

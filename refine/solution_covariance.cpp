@@ -46,8 +46,7 @@ StopReason add_input_delay_error(FitContext& ctx, const FitState& state, PassSet
 void publish_residuals(const FitContext& ctx, const FitState& state, const PassResult& pass,
                        FitResult& result) {
   const std::size_t n = ctx.window.size();
-  const std::array<std::size_t, 2> parameters =
-      parameters_per_channel(free_slots(ctx.settings.known, ctx.settings.nuisance));
+  const std::array<std::size_t, 2> parameters = parameters_per_channel(fit_slots(ctx.settings));
   result.residual_rms = Vector2(std::sqrt(pass.rss[0] / static_cast<double>(n)),
                                 std::sqrt(pass.rss[1] / static_cast<double>(n)));
   result.noise_sigma = ctx.settings.sample_timing_jitter
@@ -64,7 +63,7 @@ CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, Fi
   PassSettings ps = joint_pass_settings(ctx.settings, state);
   ps.hac_bandwidth = lags + 1;
   ps.batches = ctx.settings.covariance_batches;
-  const FreeMask free = free_slots(ctx.settings.known, ctx.settings.nuisance);
+  const FreeMask free = fit_slots(ctx.settings);
   ValidationSettings vs;
   vs.declared_noise = ctx.settings.declared_noise;
   ResidualValidator validator(theta_of(state.p),
@@ -104,6 +103,8 @@ CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, Fi
   result.nuisance.ambient_offset.sigma =
       free[kAmbientOffsetSlot] ? sigma_of(kAmbientOffsetSlot) : 0.0;
   result.nuisance.ambient_drift.sigma = free[kAmbientDriftSlot] ? sigma_of(kAmbientDriftSlot) : 0.0;
+  for (const ExtensionSlot& e : kExtensionTable)
+    (result.extensions.*e.estimate).sigma = free[e.slot] ? sigma_of(e.slot) : 0.0;
   result.sigma_white = result.covariance_white.diagonal().cwiseMax(0.0).cwiseSqrt();
   result.sigma = result.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
   publish_residuals(ctx, state, pass, result);

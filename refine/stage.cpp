@@ -82,9 +82,10 @@ StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c
     e.pass = budget.pass(window, p, pass_settings);
     // An unstable model (negative damping at some T̄ of the window, θ3 or θ5 ≤ 0) counts as not
     // finite: the solver backs off instead of following a diverging simulation.
-    e.finite =
-        e.pass.finite && std::isfinite(e.pass.cost) &&
-        (pass_settings.thermal_only ? p[kCooling] > 0.0 : stable_over(p, widened(range, e.pass)));
+    e.finite = e.pass.finite && std::isfinite(e.pass.cost) &&
+               (pass_settings.thermal_only
+                    ? p[kCooling] > 0.0 && extensions_physical_over(p, widened(range, e.pass))
+                    : stable_over(p, widened(range, e.pass)));
     e.too_stiff = e.pass.too_stiff;
     if (e.finite && !pass_settings.thermal_only) {
       const TbarRange seen = widened(range, e.pass);

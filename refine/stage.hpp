@@ -34,10 +34,22 @@ inline bool damped_over(const ParamVector& p, const TbarRange& range) {
          p[kDamping] + p[kDampingSlope] * range.hi > 0.0;
 }
 
-// A model the fit can simulate and accept: damped over `range`, θ3 > 0 and θ5 > 0.
+// The extensions keep the stiffness θ3·(1 − κT̄), the cooling θ5·(1 + γT̄) and the resistance
+// 1 + ρT̄ positive at both ends of `range` (each is linear in T̄).
+inline bool extensions_physical_over(const ParamVector& p, const TbarRange& range) {
+  for (const double t : {range.lo, range.hi}) {
+    if (!(1.0 - p[kStiffnessSofteningSlot] * t > 0.0) || !(1.0 + p[kCoolingTempcoSlot] * t > 0.0) ||
+        !(1.0 + p[kResistanceTempcoSlot] * t > 0.0))
+      return false;
+  }
+  return true;
+}
+
+// A model the fit can simulate and accept: damped over `range`, θ3 > 0 and θ5 > 0, and the
+// extensions physical over it.
 inline bool stable_over(const ParamVector& p, const TbarRange& range) {
   if (!(p[kCooling] > 0.0) || !(p[kStiffness] > 0.0)) return false;
-  return damped_over(p, range);
+  return damped_over(p, range) && extensions_physical_over(p, range);
 }
 
 // The coordinates z a stage fits: p[index[i]] = z[i] for the slots `free` marks (in slot order),

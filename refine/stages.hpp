@@ -29,6 +29,12 @@ FreeMask thermal_slots(const std::array<bool, kThetaSize>& known);
 // The same with the T̄ nuisance terms (ambient offset and drift) unless FitSettings fixes them.
 FreeMask thermal_slots(const FitSettings& settings);
 PassSettings thermal_pass_settings();
+// The same for a fit with FitSettings's extensions (their sensitivities, where any is estimated).
+PassSettings thermal_pass_settings(const FitSettings& settings);
+
+// Every slot the joint stage and the covariance estimate: θ unless known, the initial state, the
+// nuisance terms unless fixed, the extensions not `off`.
+FreeMask fit_slots(const FitSettings& settings);
 
 // The mechanical block's slots: θ1..θ4 unless known, x0, ẋ0.
 FreeMask mechanical_slots(const std::array<bool, kThetaSize>& known);
@@ -67,6 +73,19 @@ CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, Fi
 // covariance_singular, input_delay_at_limit), or StopReason::none.
 StopReason verdict(const FitContext& ctx, const FitState& state,
                    const CovarianceOutcome& covariance);
+
+// The staged fit (a) to (d), the covariance and the verdict on a window already prepared
+// (refine/voltage_timing.hpp), with the extensions as `settings` asks (`auto` taken as `on`).
+FitResult fit_staged(std::span<const WindowSample> prepared, const Vector6& theta_start,
+                     const FitSettings& settings);
+
+// FitSettings::extensions with an `auto`: the model with every extension not `off` fitted by the
+// stages, then each `auto` one dropped in turn (the joint stage from that solution with it held
+// at 0) and left out where Schwarz's BIC (refine/information_criteria.hpp) says it does not earn
+// its place. The result is the model chosen, each `auto` extension with the criterion's
+// difference (with minus without) that decided.
+FitResult select_extensions(std::span<const WindowSample> prepared, const Vector6& theta_start,
+                            const FitSettings& settings);
 
 // The end of a fit whose stages returned `stop`: θ and what the stages estimated into `result`,
 // then, when they all ran, the covariance at the solution and the verdict (converged, stop,

@@ -39,6 +39,9 @@ ValidationSettings validation_settings(std::span<const WindowSample> window, con
   if ((*free)[kXZeroSlot]) disable(ValidationTest::kDisplacementZero);
   if ((*free)[kAmbientOffsetSlot]) disable(ValidationTest::kAmbientOffset);
   if ((*free)[kAmbientDriftSlot]) disable(ValidationTest::kAmbientDrift);
+  if ((*free)[kResistanceTempcoSlot]) disable(ValidationTest::kResistanceTempco);
+  if ((*free)[kStiffnessSofteningSlot]) disable(ValidationTest::kStiffnessTempco);
+  if ((*free)[kCoolingTempcoSlot]) disable(ValidationTest::kCoolingTempco);
   return v;
 }
 
@@ -48,10 +51,19 @@ ValidationReport validate_fit(std::span<const WindowSample> window, const FitRes
   free[kXZeroSlot] = fit.nuisance.x_zero.estimated;
   free[kAmbientOffsetSlot] = fit.nuisance.ambient_offset.estimated;
   free[kAmbientDriftSlot] = fit.nuisance.ambient_drift.estimated;
+  Tempcos tc;
+  double* const coefficient[] = {&tc.rho, &tc.kappa, &tc.gamma};
+  bool extended = false;
+  for (std::size_t i = 0; i < kExtensionTable.size(); ++i) {
+    const ExtensionEstimate& e = fit.extensions.*kExtensionTable[i].estimate;
+    free[kExtensionTable[i].slot] = e.kept;
+    *coefficient[i] = e.kept ? e.value : 0.0;
+    extended = extended || e.kept;
+  }
   settings = validation_settings(window, fit.theta, free, settings);
   if (window.empty()) return ResidualValidator(fit.theta, settings).finish();
   ResidualValidator validator(fit.theta, settings);
-  SensitivitySimulator sim(fit.theta, fit.initial_state);
+  SensitivitySimulator sim(fit.theta, fit.initial_state, false, tc, extended);
   for (std::size_t k = 0; k < window.size(); ++k) {
     double u = window[k].voltage * window[k].voltage;
     if (k > 0) {

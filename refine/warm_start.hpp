@@ -34,7 +34,13 @@ struct WarmStart {
   bool input_delay_estimated = false;
   double input_delay_s = 0.0, input_delay_sigma_s = 0.0, input_delay_sigma_inflation = 1.0;
   VoltageInterval voltage_interval = VoltageInterval::before;
+  // The extensions as the fit left them: their coefficients and, for `auto`, which it kept (the
+  // warm refit keeps the same model; the choice is made again by the next full fit).
+  Extensions extensions;
 };
+
+// `settings` with each `auto` extension `on` where `chosen` kept it, else `off`.
+FitSettings with_chosen_extensions(const FitSettings& settings, const Extensions& chosen);
 
 // The warm start `fit` leaves at its window's first sample `first` (as recorded), for a fit made
 // with `settings`.
@@ -57,5 +63,12 @@ WarmFallback applicable(const WarmStart& warm, std::span<const WindowSample> win
 // why (fit() with FitSettings::warm then runs the full fit).
 FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
                 const FitSettings& settings);
+
+// The joint stage, the covariance and the verdict on a window already prepared
+// (refine/voltage_timing.hpp), from `from`'s solution at the window's first sample, with at most
+// `max_iterations` per round of the noise model: the end of a fit whose start is known. Returns
+// whatever it reached (converged or not, with its residuals where the stage ran).
+FitResult joint_refit(std::span<const WindowSample> prepared, const WarmStart& from,
+                      const FitSettings& settings, int max_iterations);
 
 }  // namespace scp::refine

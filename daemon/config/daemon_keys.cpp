@@ -366,39 +366,37 @@ void nuisance_key(Binder& b, std::string_view key, scp::refine::NuisanceSetting&
   out = {.fixed = held.has_value(), .value = held.value_or(0.0) * scale};
 }
 
-// The temperature sensor's lag and the extensions ρ, κ, γ: the fit does not estimate them yet
-// (docs/numerics.md), so anything but 0 / `off` is refused rather than silently ignored.
-void declare_unfitted_terms(Binder& refine, Binder& nuisance, RefineSettings& out) {
-  const auto refuse = [](const Binder& b, std::string_view key, std::string_view what) {
-    b.fail(key, "not implemented yet: the fit does not estimate " + std::string(what) +
-                    " (docs/numerics.md); only `off` (0)");
-  };
+// The temperature sensor's lag: the fit does not estimate it yet (docs/numerics.md), so anything
+// but 0 is refused rather than silently ignored.
+void declare_sensor_lag(Binder& nuisance, RefineSettings& out) {
   std::optional<double> lag;
   nuisance.number_or_word("sensor_lag", lag, "estimate", "0", 0.0, 100.0,
                           "first-order lag of the temperature sensor, s (0: none; not fitted "
                           "yet, only 0)");
-  if (!lag || *lag != 0.0) refuse(nuisance, "sensor_lag", "the temperature sensor's lag");
+  if (!lag || *lag != 0.0)
+    nuisance.fail("sensor_lag",
+                  "not implemented yet: the fit does not estimate the temperature sensor's lag "
+                  "(docs/numerics.md); only 0");
   out.nuisance.sensor_lag = {};
+}
+
+// The extensions ρ, κ, γ of the paper's model (refine/fit_terms.hpp): `off`, `on` or `auto`
+// (kept where Schwarz's BIC says the window needs it).
+void declare_extensions(Binder& refine, RefineSettings& out) {
   Binder ext = refine.section("extensions",
-                              "extensions of the paper's model (not fitted yet: only `off`, "
-                              "docs/numerics.md)");
-  const std::tuple<const char*, scp::refine::ExtensionMode*, const char*, const char*> exts[] = {
+                              "extensions of the paper's model: off, on, or auto (fitted, and "
+                              "kept where the BIC says the window needs it; docs/numerics.md)");
+  const std::tuple<const char*, scp::refine::ExtensionMode*, const char*> exts[] = {
       {"resistance_tempco", &out.extensions.resistance_tempco,
-       "ρ (the heater's resistance's "
-       "temperature coefficient)",
-       "R = R0·(1 + ρT̄): the heating θ6·V²/(1 + ρT̄)"},
+       "the heater's resistance's temperature coefficient ρ: R = R0·(1 + ρT̄), the heating "
+       "θ6·V²/(1 + ρT̄)"},
       {"stiffness_softening", &out.extensions.stiffness_softening,
-       "κ (the stiffness's "
-       "softening with temperature)",
-       "k = k0·(1 − κT̄): a force +θ3·κ·T̄·x"},
+       "the stiffness's softening κ: k = k0·(1 − κT̄), a force +θ3·κ·T̄·x"},
       {"cooling_tempco", &out.extensions.cooling_tempco,
-       "γ (the cooling's temperature "
-       "coefficient)",
-       "λ = λ0·(1 + γT̄): the cooling −θ5·(1 + γT̄)·T̄"}};
-  for (const auto& [key, mode, what, doc] : exts) {
+       "the cooling's temperature coefficient γ: λ = λ0·(1 + γT̄), the cooling "
+       "−θ5·(1 + γT̄)·T̄"}};
+  for (const auto& [key, mode, doc] : exts)
     ext.choice(key, *mode, scp::refine::ExtensionMode::off, scp::refine::kExtensionModeNames, doc);
-    if (*mode != scp::refine::ExtensionMode::off) refuse(ext, key, what);
-  }
 }
 
 // What the refined fit is told about a real bench (refine/fit_terms.hpp, issue 28).
@@ -419,7 +417,8 @@ void declare_refine_bench(Binder& refine, RefineSettings& out) {
                "°C the true ambient lies above actuator.ambient_c");
   nuisance_key(nuisance, "ambient_drift", out.nuisance.ambient_drift, -100.0, 100.0, 1.0 / 3600.0,
                "°C per hour the ambient moves over the window");
-  declare_unfitted_terms(refine, nuisance, out);
+  declare_sensor_lag(nuisance, out);
+  declare_extensions(refine, out);
 }
 
 void declare_sensors(Binder sensors, RefineSettings& out) {

@@ -35,8 +35,14 @@ TEST(Parameters, TheSlotsFollowThePapersTheta) {
   slots.insert(kThermalTheta.begin(), kThermalTheta.end());
   slots.insert({kX0, kXdot0, kTbar0});
   EXPECT_EQ(*slots.rbegin(), kModelSlots - 1);
-  // ... or is a nuisance term of the outputs, after them.
+  // ... or is a nuisance term of the outputs, after them ...
   slots.insert({kXZeroSlot, kAmbientOffsetSlot, kAmbientDriftSlot});
+  EXPECT_EQ(*slots.rbegin(), kFirstExtensionSlot - 1);
+  // ... or an extension's coefficient, last.
+  for (const ExtensionSlot& e : kExtensionTable) {
+    EXPECT_TRUE(is_extension(e.slot)) << e.slot;
+    slots.insert(e.slot);
+  }
   EXPECT_EQ(slots.size(), static_cast<std::size_t>(kParams));
   EXPECT_EQ(*slots.rbegin(), kParams - 1);
 }
@@ -63,8 +69,11 @@ TEST(Parameters, FreeSlotsAndTheChannelsTheyActOn) {
   const std::array<std::size_t, 2> per_channel = parameters_per_channel(free);
   EXPECT_EQ(per_channel[0], 7u);
   EXPECT_EQ(per_channel[1], 2u);  // θ5 and T̄0: θ6 is known
+  // T̄ sees θ5, θ6, T̄0 and the thermal extensions ρ, γ; κ acts on x only.
   for (int i = 0; i < kParams; ++i)
-    EXPECT_EQ(acts_on_tbar(i), i == kCooling || i == kHeating || i == kTbar0) << i;
+    EXPECT_EQ(acts_on_tbar(i), i == kCooling || i == kHeating || i == kTbar0 ||
+                                   i == kResistanceTempcoSlot || i == kCoolingTempcoSlot)
+        << i;
   // The nuisance terms, free unless fixed: x's zero in x's output, the ambient's in T̄'s.
   NuisanceSettings nuisance;
   nuisance.x_zero.fixed = nuisance.ambient_offset.fixed = false;
@@ -75,6 +84,18 @@ TEST(Parameters, FreeSlotsAndTheChannelsTheyActOn) {
   const std::array<std::size_t, 2> counted = parameters_per_channel(with_nuisance);
   EXPECT_EQ(counted[0], 8u);  // the seven above and x's zero
   EXPECT_EQ(counted[1], 3u);  // θ5, T̄0 and the ambient offset
+  // The extensions: free unless off; ρ and γ in both outputs, κ in x's.
+  ExtensionSettings extensions;
+  extensions.resistance_tempco = ExtensionMode::automatic;
+  extensions.stiffness_softening = ExtensionMode::on;
+  FreeMask extended = with_nuisance;
+  free_extensions(extensions, extended);
+  EXPECT_TRUE(extended[kResistanceTempcoSlot]);
+  EXPECT_TRUE(extended[kStiffnessSofteningSlot]);
+  EXPECT_FALSE(extended[kCoolingTempcoSlot]);
+  const std::array<std::size_t, 2> with_extensions = parameters_per_channel(extended);
+  EXPECT_EQ(with_extensions[0], 10u);  // and ρ, κ
+  EXPECT_EQ(with_extensions[1], 4u);   // and ρ
 }
 
 TEST(StopReasons, EachHasItsOwnTextAndNoneHasNone) {

@@ -153,11 +153,13 @@ void HealthRunner::seed(const scp::refine::FitResult& fit,
   scp::refine::ThermalCache cache;
   for (std::size_t i = 1; i < window.size(); ++i) {
     scp::refine::advance_interval(fit.theta, window[i - 1], window[i], fit.input_delay_s, state,
-                                  cache);
+                                  cache, nullptr, scp::refine::tempcos_of(fit.extensions));
   }
   const scp::health::Reference reference = monitor_->reference_at(window.back().t);
   if (!reference.valid) return;
-  simulator_.emplace(reference.theta, scp::refine::InitialState(state.x, state.xdot, state.tbar));
+  // The reference's θ with the fit's extensions (a baseline holds θ only).
+  simulator_.emplace(reference.theta, scp::refine::InitialState(state.x, state.xdot, state.tbar),
+                     false, scp::refine::tempcos_of(fit.extensions));
   generation_ = reference.generation;
   last_sample_ = window.back();
   input_delay_ = fit.input_delay_s;

@@ -20,14 +20,13 @@ const char* remedy(ValidationTest test) noexcept {
       return "the temperature sensor lags the temperature (refine.nuisance.sensor_lag: not fitted "
              "yet, docs/numerics.md)";
     case ValidationTest::kResistanceTempco:
-      return "the heater's resistance changes with temperature "
-             "(refine.extensions.resistance_tempco: not fitted yet, docs/numerics.md)";
+      return "the heater's resistance changes with temperature (set "
+             "refine.extensions.resistance_tempco: auto)";
     case ValidationTest::kStiffnessTempco:
-      return "the stiffness changes with temperature (refine.extensions.stiffness_softening: not "
-             "fitted yet, docs/numerics.md)";
+      return "the stiffness changes with temperature (set "
+             "refine.extensions.stiffness_softening: auto)";
     case ValidationTest::kCoolingTempco:
-      return "the cooling changes with temperature (refine.extensions.cooling_tempco: not fitted "
-             "yet, docs/numerics.md)";
+      return "the cooling changes with temperature (set refine.extensions.cooling_tempco: auto)";
     case ValidationTest::kAmbientOffset:
     case ValidationTest::kAmbientDrift:
       return "check the ambient (actuator.ambient_c) and let refine.nuisance.ambient_offset and "
