@@ -215,9 +215,14 @@ TEST(Config, NuisanceTermsAreEstimatedOrHeld) {
   EXPECT_NE(range.find("out of range"), std::string::npos) << range;
   const std::string lag = error_of("refine: {nuisance: {sensor_lag: 0.2}}\n");
   EXPECT_NE(lag.find("not implemented yet"), std::string::npos) << lag;
-  const std::string ext = error_of("refine: {extensions: {cooling_tempco: auto}}\n");
-  EXPECT_NE(ext.find("refine.extensions.cooling_tempco"), std::string::npos) << ext;
-  EXPECT_NE(ext.find("not implemented yet"), std::string::npos) << ext;
+  // The extensions load as off, on or auto; another word is refused naming the key.
+  const DaemonConfig ext = load_config_text(
+      "refine: {extensions: {cooling_tempco: auto, resistance_tempco: on}}\n", "test.yaml");
+  EXPECT_EQ(ext.refine.extensions.cooling_tempco, scp::refine::ExtensionMode::automatic);
+  EXPECT_EQ(ext.refine.extensions.resistance_tempco, scp::refine::ExtensionMode::on);
+  EXPECT_EQ(ext.refine.extensions.stiffness_softening, scp::refine::ExtensionMode::off);
+  const std::string bad = error_of("refine: {extensions: {cooling_tempco: maybe}}\n");
+  EXPECT_NE(bad.find("refine.extensions.cooling_tempco"), std::string::npos) << bad;
 }
 
 // refine.voltage_interval is resolved once the driver is made: `auto` is before when the driver
