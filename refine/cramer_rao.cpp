@@ -9,18 +9,25 @@ namespace scp::refine {
 
 Matrix6 cramer_rao_bound(std::span<const WindowSample> window, const Vector6& theta,
                          const InitialState& initial, const Vector2& noise_sigma,
-                         const std::array<bool, 6>& known, const NuisanceSettings& nuisance) {
+                         const std::array<bool, 6>& known, const NuisanceSettings& nuisance,
+                         const ExtensionSettings& extensions, const Tempcos& truth) {
   Matrix6 bound = Matrix6::Zero();
   if (window.size() < 2 || !theta.allFinite() || !initial.allFinite()) return bound;
-  const ParamVector p = param_vector(theta, initial);
+  ParamVector p = param_vector(theta, initial);
+  p[kResistanceTempcoSlot] = truth.rho;
+  p[kStiffnessSofteningSlot] = truth.kappa;
+  p[kCoolingTempcoSlot] = truth.gamma;
+  FreeMask free = free_slots(known, nuisance);
+  free_extensions(extensions, free);
   PassSettings ps;
+  ps.extensions = extensions.any();
   for (int c = 0; c < 2; ++c) {
     const double s = noise_sigma[c];
     ps.weight[c] = std::isfinite(s) && s > 0.0 ? 1.0 / (s * s) : 0.0;
   }
   const PassResult pass = residual_pass(window, p, ps);
   ParamMatrix inverse;
-  if (!pass.finite || !inverse_on_free(pass.jtwj, free_slots(known, nuisance), inverse)) {
+  if (!pass.finite || !inverse_on_free(pass.jtwj, free, inverse)) {
     bound.setConstant(std::numeric_limits<double>::infinity());
     return bound;
   }

@@ -195,11 +195,13 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
 // T̄ in °C): the covariance an efficient unbiased estimator reaches. Known parameters as in fit();
 // the initial state is a nuisance parameter (estimated alongside, its uncertainty included), and
 // so are the nuisance terms `nuisance` does not fix (as fit(): none by default). A channel with
-// noise_sigma ≤ 0 is taken as not measured.
+// noise_sigma ≤ 0 is taken as not measured. `truth`: the model's extensions' true coefficients;
+// those `extensions` does not leave `off` are estimated alongside too.
 Matrix6 cramer_rao_bound(std::span<const WindowSample> window, const Vector6& theta,
                          const InitialState& initial, const Vector2& noise_sigma,
                          const std::array<bool, 6>& known = {},
-                         const NuisanceSettings& nuisance = {});
+                         const NuisanceSettings& nuisance = {},
+                         const ExtensionSettings& extensions = {}, const Tempcos& truth = {});
 
 // Per block (0 mechanical θ1..θ4, 1 thermal θ5, θ6): the Wald statistic of another estimate θ̂_o
 // with claimed standard deviations σ_o against this fit, dᵀ(C_fit + diag(σ_o²))⁻¹d with d = θ̂_o −

@@ -8,15 +8,17 @@ namespace scp::tools::crb {
 
 nlohmann::json crb_report(const Experiment& e, const NoiseLevel& noise,
                           const std::array<bool, 6>& known, double ambient_c,
-                          double temperature_max_c, const refine::NuisanceSettings& nuisance) {
+                          double temperature_max_c, const refine::NuisanceSettings& nuisance,
+                          const refine::ExtensionSettings& extensions) {
   if (!(std::isfinite(noise.x) && noise.x > 0.0 && std::isfinite(noise.temperature) &&
         noise.temperature > 0.0)) {
     throw std::invalid_argument(
         "the bound needs sensor noise > 0 on x and on T (a noise-free channel would fix θ "
         "exactly): set driver.sim.noise.x and .temperature, or --noise-x and --noise-temperature");
   }
-  const refine::Matrix6 cov = refine::cramer_rao_bound(
-      e.window, e.theta, e.initial, refine::Vector2(noise.x, noise.temperature), known, nuisance);
+  const refine::Matrix6 cov = refine::cramer_rao_bound(e.window, e.theta, e.initial,
+                                                       refine::Vector2(noise.x, noise.temperature),
+                                                       known, nuisance, extensions, e.tempcos);
 
   std::vector<double> theta(6), sigma(6), rel(6);
   std::vector<bool> known_list(6);
@@ -44,6 +46,13 @@ nlohmann::json crb_report(const Experiment& e, const NoiseLevel& noise,
   if (!nuisance.ambient_offset.fixed) estimated.push_back("ambient_offset");
   if (!nuisance.ambient_drift.fixed) estimated.push_back("ambient_drift");
   out["nuisance_estimated"] = std::move(estimated);
+  nlohmann::json extended = nlohmann::json::array();
+  if (extensions.resistance_tempco != refine::ExtensionMode::off)
+    extended.push_back("resistance_tempco");
+  if (extensions.stiffness_softening != refine::ExtensionMode::off)
+    extended.push_back("stiffness_softening");
+  if (extensions.cooling_tempco != refine::ExtensionMode::off) extended.push_back("cooling_tempco");
+  out["extensions_estimated"] = std::move(extended);
   out["noise"] = {{"x", noise.x}, {"temperature", noise.temperature}};
   out["period_s"] = e.period_s;
   out["duration_s"] = e.duration_s;

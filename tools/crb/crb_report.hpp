@@ -16,14 +16,17 @@ struct NoiseLevel {
 };
 
 // Calls refine::cramer_rao_bound() on the experiment's window, the nuisance terms that `nuisance`
-// leaves free estimated alongside (as the daemon's fit estimates them: refine.nuisance), and
+// leaves free estimated alongside (as the daemon's fit estimates them: refine.nuisance), and the
+// model's extensions that `extensions` does not leave off (at the plant's coefficients), and
 // returns
-//   theta, crb_sigma (absolute), crb_rel (σ/|θ|), known, nuisance_estimated (names), noise, window
+//   theta, crb_sigma (absolute), crb_rel (σ/|θ|), known, nuisance_estimated and
+//   extensions_estimated (names), noise, window
 //   {t_begin, t_end, samples}, initial_state, excitation {mean_v, mean_v2, max_v}, thermal
 //   {mean_tbar, max_tbar, max_temperature_c, temperature_max_c, within_limit}.
 // Throws std::invalid_argument when a noise level is not > 0 (a noise-free channel has no bound).
 nlohmann::json crb_report(const Experiment& experiment, const NoiseLevel& noise,
                           const std::array<bool, 6>& known, double ambient_c,
-                          double temperature_max_c, const refine::NuisanceSettings& nuisance = {});
+                          double temperature_max_c, const refine::NuisanceSettings& nuisance = {},
+                          const refine::ExtensionSettings& extensions = {});
 
 }  // namespace scp::tools::crb

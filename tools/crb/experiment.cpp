@@ -50,6 +50,8 @@ Experiment simulate(const config::DaemonConfig& config, double duration_s, doubl
   out.window.reserve(static_cast<std::size_t>(window_cycles + 1));
   const auto theta = drivers::sim::theta_of(sim.plant);
   for (int i = 0; i < 6; ++i) out.theta[i] = theta[static_cast<std::size_t>(i)];
+  const drivers::sim::PlantDeviations& d = sim.deviations;
+  out.tempcos = {d.resistance_tempco, d.stiffness_softening, d.cooling_tempco};
 
   double held = 0.0;  // the command the plant holds until the next read (0 V before the first)
   double sum_v = 0.0, sum_v2 = 0.0, sum_tbar = 0.0;

@@ -50,9 +50,9 @@ int main(int argc, char** argv) {
     const auto experiment = scp::tools::crb::simulate(cfg, duration, window);
     std::array<bool, 6> known{};
     for (std::size_t i = 0; i < 6; ++i) known[i] = cfg.estimator.known[i];
-    const auto report =
-        scp::tools::crb::crb_report(experiment, noise, known, cfg.actuator.ambient_c,
-                                    cfg.safety.temperature_max_c, cfg.refine.nuisance);
+    const auto report = scp::tools::crb::crb_report(
+        experiment, noise, known, cfg.actuator.ambient_c, cfg.safety.temperature_max_c,
+        cfg.refine.nuisance, cfg.refine.extensions);
     std::printf("%s\n", report.dump(pretty ? 2 : -1).c_str());
     return 0;
   } catch (const std::exception& e) {
