@@ -21,6 +21,7 @@ FreeMask thermal_slots(const FitSettings& settings) {
   free_extensions(settings.extensions, extensions);
   free[kResistanceTempcoSlot] = extensions[kResistanceTempcoSlot];
   free[kCoolingTempcoSlot] = extensions[kCoolingTempcoSlot];
+  free[kSensorLagSlot] = !settings.nuisance.sensor_lag.fixed;
   return free;
 }
 
@@ -33,7 +34,7 @@ PassSettings thermal_pass_settings() {
 
 PassSettings thermal_pass_settings(const FitSettings& settings) {
   PassSettings ps = thermal_pass_settings();
-  ps.extensions = settings.extensions.any();
+  ps.extensions = estimates_optional_slots(settings);
   return ps;
 }
 
@@ -75,7 +76,7 @@ StopReason fit_mechanical(FitContext& ctx, FitState& state) {
   const Coordinates c(mechanical_slots(ctx.settings), state.p);
   PassSettings ps;
   ps.weight = {1.0, 0.0};
-  ps.extensions = ctx.settings.extensions.any();
+  ps.extensions = estimates_optional_slots(ctx.settings);
   const StageResult r = run_stage(ctx.window, c, ps, ctx.max_iterations, ctx.budget, state.range);
   state.iterations += r.iterations;
   if (r.pass.finite) {

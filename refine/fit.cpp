@@ -54,8 +54,7 @@ void take_progress(const FitContext& ctx, const FitState& state, FitResult& resu
   result.nuisance.x_zero = {!n.x_zero.fixed, state.p[kXZeroSlot], 0.0};
   result.nuisance.ambient_offset = {!n.ambient_offset.fixed, state.p[kAmbientOffsetSlot], 0.0};
   result.nuisance.ambient_drift = {!n.ambient_drift.fixed, state.p[kAmbientDriftSlot], 0.0};
-  // Not modelled yet: held at its setting (docs/numerics.md, "Nuisance terms").
-  result.nuisance.sensor_lag = {false, n.sensor_lag.fixed ? n.sensor_lag.value : 0.0, 0.0};
+  result.nuisance.sensor_lag = {!n.sensor_lag.fixed, state.p[kSensorLagSlot], 0.0};
   for (const ExtensionSlot& e : kExtensionTable) {
     ExtensionEstimate& out = result.extensions.*e.estimate;
     out.mode = ctx.settings.extensions.*e.mode;

@@ -196,7 +196,8 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
 // the initial state is a nuisance parameter (estimated alongside, its uncertainty included), and
 // so are the nuisance terms `nuisance` does not fix (as fit(): none by default). A channel with
 // noise_sigma ≤ 0 is taken as not measured. `truth`: the model's extensions' true coefficients;
-// those `extensions` does not leave `off` are estimated alongside too.
+// those `extensions` does not leave `off` are estimated alongside too. The sensor's lag is
+// nuisance.sensor_lag.value, estimated unless fixed.
 Matrix6 cramer_rao_bound(std::span<const WindowSample> window, const Vector6& theta,
                          const InitialState& initial, const Vector2& noise_sigma,
                          const std::array<bool, 6>& known = {},

@@ -42,6 +42,7 @@ FitState shifted_state(std::span<const WindowSample> window, const WarmStart& wa
   state.p[kXZeroSlot] = warm.nuisance[0];
   state.p[kAmbientOffsetSlot] = warm.nuisance[1];
   state.p[kAmbientDriftSlot] = warm.nuisance[2];
+  state.p[kSensorLagSlot] = warm.sensor_lag;
   const Tempcos tc = tempcos_of(warm.extensions);
   state.p[kResistanceTempcoSlot] = tc.rho;
   state.p[kStiffnessSofteningSlot] = tc.kappa;
@@ -95,6 +96,7 @@ WarmStart warm_start(const FitResult& fit, const FitSettings& settings, const Wi
   w.at = first;
   w.nuisance = {fit.nuisance.x_zero.value, fit.nuisance.ambient_offset.value,
                 fit.nuisance.ambient_drift.value};
+  w.sensor_lag = fit.nuisance.sensor_lag.value;
   w.noise_variance = fit.noise_sigma.cwiseProduct(fit.noise_sigma);
   w.timing_variance = fit.sample_timing_sigma_s * fit.sample_timing_sigma_s;
   w.input_delay_estimated = fit.input_delay_estimated;

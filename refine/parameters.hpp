@@ -34,8 +34,15 @@ inline constexpr int kXZeroSlot = 9, kAmbientOffsetSlot = 10, kAmbientDriftSlot 
 inline constexpr int kResistanceTempcoSlot = 12, kStiffnessSofteningSlot = 13,
                      kCoolingTempcoSlot = 14;
 inline constexpr int kFirstExtensionSlot = 12, kExtensionSlots = 3;
-inline constexpr int kParams = 15;
-static_assert(kFirstExtensionSlot + kExtensionSlots == kParams, "the extensions are p's tail");
+// The temperature sensor's lag τs (s, refine/sensor_lag.hpp), on T̄'s output.
+inline constexpr int kSensorLagSlot = 15;
+inline constexpr int kParams = 16;
+// The optional slots, whose sensitivities a pass carries only for a fit that estimates one of
+// them (PassSettings::extensions): the extensions and the sensor's lag, last.
+inline constexpr int kFirstOptionalSlot = kFirstExtensionSlot;
+static_assert(kSensorLagSlot + 1 == kParams &&
+                  kFirstExtensionSlot + kExtensionSlots == kSensorLagSlot,
+              "the optional slots are p's tail");
 
 inline constexpr int kThetaSize = 6;
 inline constexpr int kMechanicalSize = 4;  // θ1..θ4, at the head of θ
@@ -65,11 +72,15 @@ inline FreeMask free_slots(const std::array<bool, kThetaSize>& known,
   free[kXZeroSlot] = !nuisance.x_zero.fixed;
   free[kAmbientOffsetSlot] = !nuisance.ambient_offset.fixed;
   free[kAmbientDriftSlot] = !nuisance.ambient_drift.fixed;
+  free[kSensorLagSlot] = !nuisance.sensor_lag.fixed;
   return free;
 }
 
 constexpr bool is_extension(int slot) {
   return slot >= kFirstExtensionSlot && slot < kFirstExtensionSlot + kExtensionSlots;
+}
+constexpr bool is_optional(int slot) {
+  return slot >= kFirstOptionalSlot;
 }
 
 // Whether a slot moves the model's T̄ (the thermal block does not see x); every slot of the
@@ -80,10 +91,11 @@ constexpr bool acts_on_tbar(int slot) {
 }
 // Whether a slot moves the x or the T̄ the fit compares with the measurement.
 constexpr bool in_x_output(int slot) {
-  return slot != kAmbientOffsetSlot && slot != kAmbientDriftSlot;
+  return slot != kAmbientOffsetSlot && slot != kAmbientDriftSlot && slot != kSensorLagSlot;
 }
 constexpr bool in_tbar_output(int slot) {
-  return acts_on_tbar(slot) || slot == kAmbientOffsetSlot || slot == kAmbientDriftSlot;
+  return acts_on_tbar(slot) || slot == kAmbientOffsetSlot || slot == kAmbientDriftSlot ||
+         slot == kSensorLagSlot;
 }
 
 // The model's outputs at a sample `since` s after the window's first, from the simulation's
@@ -100,6 +112,7 @@ inline void set_nuisance_start(const NuisanceSettings& n, ParamVector& p) {
   p[kXZeroSlot] = n.x_zero.fixed ? n.x_zero.value : 0.0;
   p[kAmbientOffsetSlot] = n.ambient_offset.fixed ? n.ambient_offset.value : 0.0;
   p[kAmbientDriftSlot] = n.ambient_drift.fixed ? n.ambient_drift.value : 0.0;
+  p[kSensorLagSlot] = n.sensor_lag.fixed ? n.sensor_lag.value : 0.0;
 }
 
 // p from θ and the initial state (every other slot 0).

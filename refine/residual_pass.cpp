@@ -10,6 +10,7 @@
 
 #include "refine/landing_filter.hpp"
 #include "refine/sensitivities.hpp"
+#include "refine/sensor_lag.hpp"
 #include "refine/validate_fit.hpp"
 #include "refine/validation.hpp"
 
@@ -32,12 +33,12 @@ constexpr auto row_slots() {
   return slots;
 }
 constexpr bool in_x_base(int s) {
-  return in_x_output(s) && !is_extension(s);
+  return in_x_output(s) && !is_optional(s);
 }
 constexpr bool in_tbar_base(int s) {
-  return in_tbar_output(s) && !is_extension(s);
+  return in_tbar_output(s) && !is_optional(s);
 }
-// Without the extensions' slots (PassSettings::extensions false: their columns are 0).
+// Without the optional slots (PassSettings::extensions false: their columns are 0).
 constexpr auto kXRowSlots = row_slots<in_x_base>();
 constexpr auto kTbarRowSlots = row_slots<in_tbar_base>();
 constexpr auto kXRowSlotsExtended = row_slots<in_x_output>();
@@ -240,9 +241,12 @@ struct ResidualSums {
   double t0;  // the window's first sample: the ambient drift's origin
   double prev_rx = 0.0, prev_rt = 0.0;
 
-  void add(std::size_t k, const WindowSample& w, const ModelState& s, double& rx, double& rt) {
+  // `tbar_read`: the model's T̄ as its sensor reads it (refine/sensor_lag.hpp; s.tbar without a
+  // lag).
+  void add(std::size_t k, const WindowSample& w, const ModelState& s, double tbar_read, double& rx,
+           double& rt) {
     rx = w.x - x_output(p, s.x);
-    rt = w.tbar - tbar_output(p, s.tbar, w.t - t0);
+    rt = w.tbar - tbar_output(p, tbar_read, w.t - t0);
     r.tbar_min = std::min(r.tbar_min, s.tbar);
     r.tbar_max = std::max(r.tbar_max, s.tbar);
     r.cost += wx * rx * rx + wt * rt * rt;
@@ -283,6 +287,9 @@ bool cost_only_pass(std::span<const WindowSample> window, const ParamVector& p,
   PassResult& r = sums.r;
   ModelState s{initial[0], initial[1], initial[2]};
   ThermalCache cache;
+  SensorLag lag(p[kSensorLagSlot]);
+  const bool lagged = p[kSensorLagSlot] != 0.0;
+  lag.start(s.tbar, nullptr);
   double rx = 0.0, rt = 0.0;
   for (std::size_t k = 0; k < window.size(); ++k) {
     if (k > 0 && settings.thermal_only) {
@@ -294,7 +301,9 @@ bool cost_only_pass(std::span<const WindowSample> window, const ParamVector& p,
                                      cache, nullptr, tc);
     }
     if (give_up(settings, k, r.substeps, s, r)) return true;
-    sums.add(k, window[k], s, rx, rt);
+    const double read =
+        lagged && k > 0 ? lag.advance(window[k].t - window[k - 1].t, s.tbar, nullptr) : s.tbar;
+    sums.add(k, window[k], s, read, rx, rt);
   }
   return false;
 }
@@ -425,6 +434,10 @@ bool jacobian_pass(std::span<const WindowSample> window, const ParamVector& p,
   BatchSums batch_sums(settings.batches, window.size());
   std::size_t next_batch = batch_sums.next_start();
   ParamVector* batch_score = nullptr;
+  // The sensor's lag: applied where it is not 0 or is estimated (its sensitivity at 0 is −dT̄/dt).
+  SensorLag lag(p[kSensorLagSlot]);
+  const bool lagged = p[kSensorLagSlot] != 0.0 || settings.extensions;
+  lag.start(sim.state().tbar, &sim.dtbar());
   double rx = 0.0, rt = 0.0;
   bool stopped = false;
   for (std::size_t k = 0; k < window.size(); ++k) {
@@ -434,8 +447,9 @@ bool jacobian_pass(std::span<const WindowSample> window, const ParamVector& p,
       stopped = true;
       break;
     }
-    sums.add(k, window[k], sim.state(), rx, rt);
-    ParamVector jx = sim.dx(), jt = sim.dtbar();
+    if (lagged && k > 0) lag.advance(window[k].t - window[k - 1].t, sim.state().tbar, &sim.dtbar());
+    sums.add(k, window[k], sim.state(), lagged ? lag.reading() : sim.state().tbar, rx, rt);
+    ParamVector jx = sim.dx(), jt = lagged ? lag.sensitivities() : sim.dtbar();
     jx[kXZeroSlot] = 1.0;
     jt[kAmbientOffsetSlot] = 1.0;
     jt[kAmbientDriftSlot] = window[k].t - sums.t0;

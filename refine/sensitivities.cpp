@@ -138,9 +138,12 @@ void SensitivitySimulator::advance_mechanical_sensitivities(const MechanicalPiec
   const Extension eb = scale * extension_forcing(b, Eigen::Vector2d(dtbar_[kResistanceTempcoSlot],
                                                                     dtbar_[kCoolingTempcoSlot])) -
                        ea;
-  const Extension ex = dx_.tail<kExtensionSlots>(), ev = dxdot_.tail<kExtensionSlots>();
-  dx_.tail<kExtensionSlots>() = e(0, 0) * ex + e(0, 1) * ev + f1(0, 1) * ea + f2(0, 1) * eb;
-  dxdot_.tail<kExtensionSlots>() = e(1, 0) * ex + e(1, 1) * ev + f1(1, 1) * ea + f2(1, 1) * eb;
+  const Extension ex = dx_.segment<kExtensionSlots>(kFirstExtensionSlot),
+                  ev = dxdot_.segment<kExtensionSlots>(kFirstExtensionSlot);
+  dx_.segment<kExtensionSlots>(kFirstExtensionSlot) =
+      e(0, 0) * ex + e(0, 1) * ev + f1(0, 1) * ea + f2(0, 1) * eb;
+  dxdot_.segment<kExtensionSlots>(kFirstExtensionSlot) =
+      e(1, 0) * ex + e(1, 1) * ev + f1(1, 1) * ea + f2(1, 1) * eb;
 }
 
 }  // namespace scp::refine

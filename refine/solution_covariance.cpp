@@ -103,6 +103,7 @@ CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, Fi
   result.nuisance.ambient_offset.sigma =
       free[kAmbientOffsetSlot] ? sigma_of(kAmbientOffsetSlot) : 0.0;
   result.nuisance.ambient_drift.sigma = free[kAmbientDriftSlot] ? sigma_of(kAmbientDriftSlot) : 0.0;
+  result.nuisance.sensor_lag.sigma = free[kSensorLagSlot] ? sigma_of(kSensorLagSlot) : 0.0;
   for (const ExtensionSlot& e : kExtensionTable)
     (result.extensions.*e.estimate).sigma = free[e.slot] ? sigma_of(e.slot) : 0.0;
   result.sigma_white = result.covariance_white.diagonal().cwiseMax(0.0).cwiseSqrt();

@@ -32,6 +32,12 @@ PassSettings thermal_pass_settings();
 // The same for a fit with FitSettings's extensions (their sensitivities, where any is estimated).
 PassSettings thermal_pass_settings(const FitSettings& settings);
 
+// Whether a fit under `settings` estimates an optional slot (an extension, the sensor's lag):
+// its passes then carry their sensitivities (PassSettings::extensions).
+inline bool estimates_optional_slots(const FitSettings& settings) {
+  return settings.extensions.any() || !settings.nuisance.sensor_lag.fixed;
+}
+
 // Every slot the joint stage and the covariance estimate: θ unless known, the initial state, the
 // nuisance terms unless fixed, the extensions not `off`.
 FreeMask fit_slots(const FitSettings& settings);

@@ -2,6 +2,7 @@
 
 #include "refine/model_simulator.hpp"
 #include "refine/sensitivities.hpp"
+#include "refine/sensor_lag.hpp"
 
 namespace scp::refine {
 
@@ -39,6 +40,7 @@ ValidationSettings validation_settings(std::span<const WindowSample> window, con
   if ((*free)[kXZeroSlot]) disable(ValidationTest::kDisplacementZero);
   if ((*free)[kAmbientOffsetSlot]) disable(ValidationTest::kAmbientOffset);
   if ((*free)[kAmbientDriftSlot]) disable(ValidationTest::kAmbientDrift);
+  if ((*free)[kSensorLagSlot]) disable(ValidationTest::kSensorLag);
   if ((*free)[kResistanceTempcoSlot]) disable(ValidationTest::kResistanceTempco);
   if ((*free)[kStiffnessSofteningSlot]) disable(ValidationTest::kStiffnessTempco);
   if ((*free)[kCoolingTempcoSlot]) disable(ValidationTest::kCoolingTempco);
@@ -51,6 +53,7 @@ ValidationReport validate_fit(std::span<const WindowSample> window, const FitRes
   free[kXZeroSlot] = fit.nuisance.x_zero.estimated;
   free[kAmbientOffsetSlot] = fit.nuisance.ambient_offset.estimated;
   free[kAmbientDriftSlot] = fit.nuisance.ambient_drift.estimated;
+  free[kSensorLagSlot] = fit.nuisance.sensor_lag.estimated;
   Tempcos tc;
   double* const coefficient[] = {&tc.rho, &tc.kappa, &tc.gamma};
   bool extended = false;
@@ -63,14 +66,18 @@ ValidationReport validate_fit(std::span<const WindowSample> window, const FitRes
   settings = validation_settings(window, fit.theta, free, settings);
   if (window.empty()) return ResidualValidator(fit.theta, settings).finish();
   ResidualValidator validator(fit.theta, settings);
+  extended = extended || free[kSensorLagSlot];
   SensitivitySimulator sim(fit.theta, fit.initial_state, false, tc, extended);
+  SensorLag lag(fit.nuisance.sensor_lag.value);
+  lag.start(sim.state().tbar, &sim.dtbar());
   for (std::size_t k = 0; k < window.size(); ++k) {
     double u = window[k].voltage * window[k].voltage;
     if (k > 0) {
       sim.advance(window[k - 1], window[k], fit.input_delay_s);
       u = mean_square_voltage(window[k - 1], window[k], fit.input_delay_s);
+      lag.advance(window[k].t - window[k - 1].t, sim.state().tbar, &sim.dtbar());
     }
-    ParamVector jx = sim.dx(), jt = sim.dtbar();
+    ParamVector jx = sim.dx(), jt = lag.sensitivities();
     const double since = window[k].t - window.front().t;
     jx[kXZeroSlot] = 1.0;
     jt[kAmbientOffsetSlot] = 1.0;
@@ -80,7 +87,7 @@ ValidationReport validate_fit(std::span<const WindowSample> window, const FitRes
     s.x = window[k].x;
     s.x_model = sim.state().x + fit.nuisance.x_zero.value;
     s.tbar = window[k].tbar;
-    s.tbar_model = sim.state().tbar + fit.nuisance.ambient_offset.value +
+    s.tbar_model = lag.reading() + fit.nuisance.ambient_offset.value +
                    fit.nuisance.ambient_drift.value * since;
     s.thermal_input = u;
     s.mechanical_input = sim.state().tbar;

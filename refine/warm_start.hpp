@@ -29,6 +29,7 @@ struct WarmStart {
   // The nuisance terms at `at` (the ambient's offset moves with its drift), the noise model's
   // variances (x, T̄; the samples' timing, s²) and the voltage's timing as the fit left them.
   Vector3 nuisance = Vector3::Zero();  // x zero, ambient offset, ambient drift
+  double sensor_lag = 0.0;             // s
   Vector2 noise_variance = Vector2::Zero();
   double timing_variance = 0.0;
   bool input_delay_estimated = false;

@@ -366,18 +366,12 @@ void nuisance_key(Binder& b, std::string_view key, scp::refine::NuisanceSetting&
   out = {.fixed = held.has_value(), .value = held.value_or(0.0) * scale};
 }
 
-// The temperature sensor's lag: the fit does not estimate it yet (docs/numerics.md), so anything
-// but 0 is refused rather than silently ignored.
+// The temperature sensor's lag: `estimate`d like the other nuisance terms (refine/sensor_lag.hpp),
+// or held at a declared time constant (0: none).
 void declare_sensor_lag(Binder& nuisance, RefineSettings& out) {
-  std::optional<double> lag;
-  nuisance.number_or_word("sensor_lag", lag, "estimate", "0", 0.0, 100.0,
-                          "first-order lag of the temperature sensor, s (0: none; not fitted "
-                          "yet, only 0)");
-  if (!lag || *lag != 0.0)
-    nuisance.fail("sensor_lag",
-                  "not implemented yet: the fit does not estimate the temperature sensor's lag "
-                  "(docs/numerics.md); only 0");
-  out.nuisance.sensor_lag = {};
+  nuisance_key(nuisance, "sensor_lag", out.nuisance.sensor_lag, 0.0, 100.0, 1.0,
+               "first-order lag of the temperature sensor, s: `estimate`, or the time constant "
+               "when known (0: none)");
 }
 
 // The extensions ρ, κ, γ of the paper's model (refine/fit_terms.hpp): `off`, `on` or `auto`

@@ -198,8 +198,7 @@ TEST(Config, NuisanceTermsAreEstimatedOrHeld) {
   EXPECT_FALSE(defaults.refine.nuisance.x_zero.fixed);
   EXPECT_FALSE(defaults.refine.nuisance.ambient_offset.fixed);
   EXPECT_FALSE(defaults.refine.nuisance.ambient_drift.fixed);
-  EXPECT_TRUE(defaults.refine.nuisance.sensor_lag.fixed);
-  EXPECT_EQ(defaults.refine.nuisance.sensor_lag.value, 0.0);
+  EXPECT_FALSE(defaults.refine.nuisance.sensor_lag.fixed);
   const DaemonConfig held = load_config_text(
       "refine: {nuisance: {x_zero: 2.0e-5, ambient_offset: estimate, ambient_drift: 3.6}}\n",
       "test.yaml");
@@ -213,8 +212,9 @@ TEST(Config, NuisanceTermsAreEstimatedOrHeld) {
   EXPECT_NE(word.find("`estimate`"), std::string::npos) << word;
   const std::string range = error_of("refine: {nuisance: {ambient_offset: 51}}\n");
   EXPECT_NE(range.find("out of range"), std::string::npos) << range;
-  const std::string lag = error_of("refine: {nuisance: {sensor_lag: 0.2}}\n");
-  EXPECT_NE(lag.find("not implemented yet"), std::string::npos) << lag;
+  const DaemonConfig lag = load_config_text("refine: {nuisance: {sensor_lag: 0.2}}\n", "test.yaml");
+  EXPECT_TRUE(lag.refine.nuisance.sensor_lag.fixed);
+  EXPECT_EQ(lag.refine.nuisance.sensor_lag.value, 0.2);
   // The extensions load as off, on or auto; another word is refused naming the key.
   const DaemonConfig ext = load_config_text(
       "refine: {extensions: {cooling_tempco: auto, resistance_tempco: on}}\n", "test.yaml");

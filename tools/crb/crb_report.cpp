@@ -16,9 +16,12 @@ nlohmann::json crb_report(const Experiment& e, const NoiseLevel& noise,
         "the bound needs sensor noise > 0 on x and on T (a noise-free channel would fix θ "
         "exactly): set driver.sim.noise.x and .temperature, or --noise-x and --noise-temperature");
   }
+  // An estimated lag is bounded at the plant's (a held one at its declared value).
+  refine::NuisanceSettings at_truth = nuisance;
+  if (!at_truth.sensor_lag.fixed) at_truth.sensor_lag.value = e.sensor_lag_s;
   const refine::Matrix6 cov = refine::cramer_rao_bound(e.window, e.theta, e.initial,
                                                        refine::Vector2(noise.x, noise.temperature),
-                                                       known, nuisance, extensions, e.tempcos);
+                                                       known, at_truth, extensions, e.tempcos);
 
   std::vector<double> theta(6), sigma(6), rel(6);
   std::vector<bool> known_list(6);
@@ -45,6 +48,7 @@ nlohmann::json crb_report(const Experiment& e, const NoiseLevel& noise,
   if (!nuisance.x_zero.fixed) estimated.push_back("x_zero");
   if (!nuisance.ambient_offset.fixed) estimated.push_back("ambient_offset");
   if (!nuisance.ambient_drift.fixed) estimated.push_back("ambient_drift");
+  if (!nuisance.sensor_lag.fixed) estimated.push_back("sensor_lag");
   out["nuisance_estimated"] = std::move(estimated);
   nlohmann::json extended = nlohmann::json::array();
   if (extensions.resistance_tempco != refine::ExtensionMode::off)

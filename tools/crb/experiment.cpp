@@ -52,6 +52,7 @@ Experiment simulate(const config::DaemonConfig& config, double duration_s, doubl
   for (int i = 0; i < 6; ++i) out.theta[i] = theta[static_cast<std::size_t>(i)];
   const drivers::sim::PlantDeviations& d = sim.deviations;
   out.tempcos = {d.resistance_tempco, d.stiffness_softening, d.cooling_tempco};
+  out.sensor_lag_s = d.temperature_lag_s;
 
   double held = 0.0;  // the command the plant holds until the next read (0 V before the first)
   double sum_v = 0.0, sum_v2 = 0.0, sum_tbar = 0.0;

@@ -15,7 +15,8 @@ struct Experiment {
   std::vector<refine::WindowSample> window;  // the last window_s of the run, one per period
   refine::InitialState initial = refine::InitialState::Zero();  // x, ẋ, T̄ at window.front()
   refine::Vector6 theta = refine::Vector6::Zero();              // of the simulated plant
-  refine::Tempcos tempcos;  // the simulated plant's temperature coefficients (sim.tempco)
+  refine::Tempcos tempcos;    // the simulated plant's temperature coefficients (sim.tempco)
+  double sensor_lag_s = 0.0;  // its temperature sensor's lag (sim.sensor.temperature_lag_s)
   double period_s = 0.0;
   double duration_s = 0.0;
   // Over the whole run, each command weighted by the period the DAC held it.

@@ -17,8 +17,8 @@ namespace {
 const char* remedy(ValidationTest test) noexcept {
   switch (test) {
     case ValidationTest::kSensorLag:
-      return "the temperature sensor lags the temperature (refine.nuisance.sensor_lag: not fitted "
-             "yet, docs/numerics.md)";
+      return "the temperature sensor lags the temperature (declare refine.nuisance.sensor_lag, "
+             "s, or set it to estimate)";
     case ValidationTest::kResistanceTempco:
       return "the heater's resistance changes with temperature (set "
              "refine.extensions.resistance_tempco: auto)";
