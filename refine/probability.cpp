@@ -13,6 +13,13 @@ constexpr double kTiny = 1e-300;
 // both expansions need O(√a) terms.
 constexpr int kMaxTerms = 100000;
 
+// ln Γ(x) without std::lgamma's write to glibc's global `signgam`: two fits on two threads (the
+// offline replay's lanes) would race on it. Γ > 0 for every x > 0 these distributions use.
+double log_gamma(double x) noexcept {
+  int sign = 0;
+  return ::lgamma_r(x, &sign);
+}
+
 // P(a, x) by its series, for x < a + 1.
 double lower_gamma_series(double a, double x) noexcept {
   double term = 1.0 / a, sum = term;
@@ -21,7 +28,7 @@ double lower_gamma_series(double a, double x) noexcept {
     sum += term;
     if (std::abs(term) < std::abs(sum) * kEps) break;
   }
-  return sum * std::exp(-x + a * std::log(x) - std::lgamma(a));
+  return sum * std::exp(-x + a * std::log(x) - log_gamma(a));
 }
 
 // Q(a, x) by its continued fraction (modified Lentz), for x ≥ a + 1.
@@ -39,7 +46,7 @@ double upper_gamma_fraction(double a, double x) noexcept {
     h *= delta;
     if (std::abs(delta - 1.0) < kEps) break;
   }
-  return std::exp(-x + a * std::log(x) - std::lgamma(a)) * h;
+  return std::exp(-x + a * std::log(x) - log_gamma(a)) * h;
 }
 
 // The continued fraction of I_x(a, b) (modified Lentz).
@@ -75,8 +82,8 @@ double beta_fraction(double a, double b, double x) noexcept {
 double incomplete_beta(double a, double b, double x) noexcept {
   if (x <= 0.0) return 0.0;
   if (x >= 1.0) return 1.0;
-  const double front = std::exp(std::lgamma(a + b) - std::lgamma(a) - std::lgamma(b) +
-                                a * std::log(x) + b * std::log1p(-x));
+  const double front = std::exp(log_gamma(a + b) - log_gamma(a) - log_gamma(b) + a * std::log(x) +
+                                b * std::log1p(-x));
   // The fraction converges fast for x below the mean a/(a + b); above it, by symmetry.
   if (x < (a + 1.0) / (a + b + 2.0)) return front * beta_fraction(a, b, x) / a;
   return 1.0 - front * beta_fraction(b, a, 1.0 - x) / b;

@@ -38,11 +38,15 @@ TEST(Parameters, TheSlotsFollowThePapersTheta) {
   // ... or is a nuisance term of the outputs, after them ...
   slots.insert({kXZeroSlot, kAmbientOffsetSlot, kAmbientDriftSlot});
   EXPECT_EQ(*slots.rbegin(), kFirstExtensionSlot - 1);
-  // ... or an extension's coefficient, last.
+  // ... or one of the optional slots, last: an extension's coefficient or the sensor's lag.
   for (const ExtensionSlot& e : kExtensionTable) {
     EXPECT_TRUE(is_extension(e.slot)) << e.slot;
+    EXPECT_TRUE(is_optional(e.slot)) << e.slot;
     slots.insert(e.slot);
   }
+  EXPECT_TRUE(is_optional(kSensorLagSlot));
+  EXPECT_FALSE(is_extension(kSensorLagSlot));
+  slots.insert(kSensorLagSlot);
   EXPECT_EQ(slots.size(), static_cast<std::size_t>(kParams));
   EXPECT_EQ(*slots.rbegin(), kParams - 1);
 }
