@@ -4,10 +4,17 @@
 #include <cmath>
 
 #include "common/clock.hpp"
+#include "refine/warm_start.hpp"
 
 namespace scp::daemon {
 
 namespace {
+
+using scp::refine::FitResult;
+using scp::refine::FitSettings;
+using scp::refine::WarmFallback;
+using scp::refine::WarmStart;
+using scp::refine::WindowSample;
 
 bool all_finite(const std::array<double, 6>& v) noexcept {
   return std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
@@ -43,22 +50,33 @@ class ParallelRefinement::SampleQueue final : public refine::FitObserver {
 // One worker: a refiner of its own, fed every sample, that makes every N-th fit. The caller's
 // thread touches `refiner` and `fit` only while the lane is idle or done, `pending` only itself.
 struct ParallelRefinement::Lane final : refine::FitObserver {
-  Lane(const config::DaemonConfig& cfg) : refiner(cfg.refine, cfg.estimator, cfg.loop.period_s) {
+  Lane(const config::DaemonConfig& cfg, ParallelRefinement& owner_)
+      : owner(owner_),
+        refiner(
+            cfg.refine, cfg.estimator, cfg.loop.period_s,
+            [this](std::span<const WindowSample> window, const scp::refine::Vector6& start,
+                   const FitSettings& settings) { return fit_window(window, start, settings); }) {
     refiner.set_observer(this);
   }
-  void on_sample(const scp::refine::WindowSample&) noexcept override {}
+  void on_sample(const WindowSample&) noexcept override {}
   // The fit and the window it read, for the caller's observer: the window stays valid while the
   // lane is done (its refiner takes no sample before its next job).
-  void on_fit(const scp::refine::FitResult& result,
-              std::span<const scp::refine::WindowSample> window, std::int64_t wall) override {
+  void on_fit(const FitResult& result, std::span<const WindowSample> window,
+              std::int64_t wall) override {
     fit = result;
-    fit_window = window;
+    fit_window_read = window;
     wall_ns = wall;
   }
+  void collect_bridge();
+  FitResult fit_window(std::span<const WindowSample> window, const scp::refine::Vector6& start,
+                       const FitSettings& settings);
+  bool neighbour_warm(std::span<const WindowSample> window, const FitSettings& settings,
+                      WarmStart& warm);
 
+  ParallelRefinement& owner;
   refine::Refiner refiner;
-  scp::refine::FitResult fit;
-  std::span<const scp::refine::WindowSample> fit_window;
+  FitResult fit;
+  std::span<const WindowSample> fit_window_read;
   std::int64_t wall_ns = 0;
   std::vector<HandOff> pending;  // samples since its last job (the caller's thread)
   // The job, under the mutex.
@@ -67,9 +85,77 @@ struct ParallelRefinement::Lane final : refine::FitObserver {
   refine::PaperEstimate paper;
   double t = 0.0;
   std::int64_t job_wall_ns = 0;
+  std::uint64_t index = 0;  // the fit's number in the run
+  // The fit before it (index - 1, on another lane) may seed it: its window's first sample, this
+  // window's, and the samples from the one to the other, which this lane's window drops.
+  bool has_neighbour = false;
+  double neighbour_front_t = 0.0, front_t = 0.0;
+  std::vector<WindowSample> bridge;
+  int calls = 0;  // refine::fit calls in this job: the second is Refiner's second start
   std::exception_ptr error;
   std::thread thread;
 };
+
+// Before the job's samples enter the window: those from the neighbour's first to this window's.
+void ParallelRefinement::Lane::collect_bridge() {
+  bridge.clear();
+  if (!has_neighbour) return;
+  const auto keep = [&](const WindowSample& s) {
+    if (s.t >= neighbour_front_t && s.t <= front_t) bridge.push_back(s);
+  };
+  const refine::SampleWindow& window = refiner.window();
+  for (std::size_t i = 0; i < window.size(); ++i) keep(window.at(i));
+  for (const HandOff& h : job) keep(h.sample);
+}
+
+// refine::fit, with one more warm start before its full fit: the fit just before this one, which
+// inline would have started from. The attempts' work counts in what the fit cost, as in
+// refine::fit.
+FitResult ParallelRefinement::Lane::fit_window(std::span<const WindowSample> window,
+                                               const scp::refine::Vector6& start,
+                                               const FitSettings& settings) {
+  if (calls++ > 0 || !has_neighbour) return scp::refine::fit(window, start, settings);
+  FitResult own;
+  own.warm_fallback = WarmFallback::not_requested;
+  if (settings.warm != nullptr) {
+    own = scp::refine::refit(window, *settings.warm, settings);
+    if (own.warm) return own;
+  }
+  int iterations = own.iterations, evaluations = own.evaluations;
+  if (WarmStart warm; neighbour_warm(window, settings, warm)) {
+    FitResult r = scp::refine::refit(window, warm, settings);
+    iterations += r.iterations;
+    evaluations += r.evaluations;
+    if (r.warm) {
+      r.iterations = iterations;
+      r.evaluations = evaluations;
+      return r;
+    }
+  }
+  FitSettings cold = settings;
+  cold.warm = nullptr;
+  FitResult result = scp::refine::fit(window, start, cold);
+  result.warm_fallback = own.warm_fallback;
+  result.iterations += iterations;
+  result.evaluations += evaluations;
+  return result;
+}
+
+// The warm start the fit before this one leaves at this window's first sample, as the refiner
+// carries its own (refine::warm_start, then refine::shift over each sample between).
+bool ParallelRefinement::Lane::neighbour_warm(std::span<const WindowSample> window,
+                                              const FitSettings& settings, WarmStart& warm) {
+  if (window.empty()) return false;
+  const Finished before = owner.wait_finished(index - 1);
+  if (!before) return false;
+  auto at = std::find_if(bridge.begin(), bridge.end(),
+                         [&](const WindowSample& s) { return s.t == neighbour_front_t; });
+  if (at == bridge.end()) return false;
+  warm = scp::refine::warm_start(*before, settings, *at);
+  for (; std::next(at) != bridge.end() && at->t < window.front().t; ++at)
+    scp::refine::shift(warm, *at, *std::next(at));
+  return scp::refine::applicable(warm, window, settings) == WarmFallback::none;
+}
 
 ParallelRefinement::ParallelRefinement(const config::DaemonConfig& cfg, unsigned jobs,
                                        refine::FitObserver* observer, Applied applied)
@@ -81,7 +167,8 @@ ParallelRefinement::ParallelRefinement(const config::DaemonConfig& cfg, unsigned
       shadow_(std::make_unique<refine::Refiner>(cfg.refine, cfg.estimator, cfg.loop.period_s)) {
   shadow_->set_observer(observed_.get());
   view_.interval_s = settings_.interval_s;
-  for (unsigned i = 0; i < std::max(jobs, 2U); ++i) lanes_.push_back(std::make_unique<Lane>(cfg));
+  for (unsigned i = 0; i < std::max(jobs, 2U); ++i)
+    lanes_.push_back(std::make_unique<Lane>(cfg, *this));
   for (auto& lane : lanes_) lane->thread = std::thread([this, &l = *lane] { run_lane(l); });
 }
 
@@ -102,14 +189,19 @@ void ParallelRefinement::run_lane(Lane& lane) noexcept {
     work_.wait(lock, [&] { return stopping_ || lane.state == Lane::State::queued; });
     if (stopping_) return;
     lock.unlock();
+    Finished finished;
     try {
+      lane.collect_bridge();
       for (const HandOff& h : lane.job) lane.refiner.accept(h);
+      lane.calls = 0;
       lane.refiner.fit(lane.paper, lane.t, lane.job_wall_ns);
+      finished = std::make_shared<const FitResult>(lane.fit);
     } catch (...) {
       lane.error = std::current_exception();  // rethrown where the fit is applied
     }
     lane.job.clear();
     lock.lock();
+    finished_[lane.index] = std::move(finished);
     lane.state = Lane::State::done;
     done_.notify_all();
   }
@@ -167,6 +259,13 @@ void ParallelRefinement::finish(HandOffRing& ring, double t, const refine::Paper
   if (observer_ != nullptr) observed_->show(*observer_, observed_->pushed());
 }
 
+ParallelRefinement::Finished ParallelRefinement::wait_finished(std::uint64_t fit) {
+  std::unique_lock lock(mutex_);
+  done_.wait(lock, [&] { return stopping_ || finished_.count(fit) != 0; });
+  const auto it = finished_.find(fit);
+  return it == finished_.end() ? nullptr : it->second;
+}
+
 std::optional<double> ParallelRefinement::first_unapplied_t() const noexcept {
   if (made_.empty()) return std::nullopt;
   return made_.front().t;
@@ -176,6 +275,7 @@ std::optional<double> ParallelRefinement::first_unapplied_t() const noexcept {
 void ParallelRefinement::make_fit(double t, const refine::PaperEstimate& paper) {
   Lane& lane = *lanes_[dispatched_ % lanes_.size()];
   const double t_end = shadow_->window().back().t;
+  const double front_t = shadow_->window().front().t;
   made_.push_back({observed_->pushed(), window_, t, t_end});
   {
     std::lock_guard lock(mutex_);
@@ -183,11 +283,17 @@ void ParallelRefinement::make_fit(double t, const refine::PaperEstimate& paper) 
     lane.paper = paper;
     lane.t = t;
     lane.job_wall_ns = clock::unix_ns();
+    lane.index = dispatched_;
+    // Where the refiner offers no warm start (a link whose timing it estimates), nor does this.
+    lane.has_neighbour = dispatched_ > 0 && !settings_.estimate_link_timing;
+    lane.neighbour_front_t = last_front_t_;
+    lane.front_t = front_t;
     lane.state = Lane::State::queued;
   }
   work_.notify_all();
   fitted_in_window_ = true;
   last_fit_t_end_ = t_end;
+  last_front_t_ = front_t;
   ++dispatched_;
 }
 
@@ -207,7 +313,7 @@ void ParallelRefinement::apply_next() {
   made_.pop_front();
   if (observer_ != nullptr) {
     observed_->show(*observer_, made.samples_seen);
-    observer_->on_fit(lane.fit, lane.fit_window, lane.wall_ns);
+    observer_->on_fit(lane.fit, lane.fit_window_read, lane.wall_ns);
   }
   merge_view(lane);
   // The stall rule of Refiner::fit, for the fits made from now on in the same window.
@@ -218,6 +324,8 @@ void ParallelRefinement::apply_next() {
   {
     std::lock_guard lock(mutex_);
     lane.state = Lane::State::idle;
+    // The fit before this one can seed no other now.
+    finished_.erase(finished_.begin(), finished_.lower_bound(applied_));
   }
   ++applied_;
 }
@@ -230,6 +338,8 @@ void ParallelRefinement::merge_view(const Lane& lane) {
   merged.fits = applied_ + 1;
   merged.converged_fits = view_.converged_fits + (latest.converged ? 1 : 0);
   merged.warm_fits = view_.warm_fits + (latest.warm ? 1 : 0);
+  // A warm refit started from a refined fit, whichever lane made it.
+  if (latest.warm) merged.seed = refine::Seed::refined;
   const bool tested =
       latest.converged && all_finite(lane.paper.theta_hat) && all_finite(lane.paper.sigma);
   if (!tested) {

@@ -7,7 +7,10 @@
 //
 // Each lane is a whole refine::Refiner fed every sample, and makes every N-th fit: its own
 // previous fit, N fits (N × refine.interval_s) earlier, is its warm start and seed, carried along
-// the samples its window drops, where inline uses the fit just before. A fit is made at the
+// the samples its window drops, where inline uses the fit just before. When that warm refit does
+// not converge within its iterations (the start is N intervals away), the lane waits for the fit
+// just before its own and tries a warm refit from it, as inline would have, before the full fit
+// (refine::fit's fallback). A fit is made at the
 // cycle inline makes it, except after a fit that stalled: inline waits for the next fit (a
 // doubled or renewed window, Refiner::due); here that is learnt N fits later, when the lane of
 // the stalled fit takes its next one, and N - 1 fits already under way are made at the usual
@@ -19,6 +22,7 @@
 #include <deque>
 #include <exception>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -64,6 +68,7 @@ class ParallelRefinement {
     double t;                    // loop time it was made at
     double t_end;                // its window's last sample
   };
+  using Finished = std::shared_ptr<const scp::refine::FitResult>;
   class SampleQueue;
 
   void drain(HandOffRing& ring);
@@ -74,6 +79,8 @@ class ParallelRefinement {
   void apply_next();
   void merge_view(const Lane& lane);
   void run_lane(Lane& lane) noexcept;
+  // Fit `fit` as its lane left it, once it has finished; null if it failed or the run stops.
+  Finished wait_finished(std::uint64_t fit);
 
   config::RefineSettings settings_;
   double tolerance_s_;
@@ -90,9 +97,12 @@ class ParallelRefinement {
   double last_fit_t_end_ = 0.0;
   // The latest applied fit stalled in the current window: its last sample and the wait.
   double stalled_t_end_ = 0.0, stalled_wait_s_ = 0.0;
+  double last_front_t_ = 0.0;  // the first sample of the last fit's window
   refine::RefinedView view_{};
 
-  std::mutex mutex_;  // guards each lane's job and state
+  std::mutex mutex_;  // guards each lane's job and state, and finished_
+  // Each fit's result from when it finishes until the fit after it has been applied.
+  std::map<std::uint64_t, Finished> finished_;
   std::condition_variable work_, done_;
   bool stopping_ = false;
 };
