@@ -12,10 +12,11 @@
 // just before its own and tries a warm refit from it, as inline would have, before the full fit
 // (refine::fit's fallback). A fit is made at the
 // cycle inline makes it, except after a fit that stalled: inline waits for the next fit (a
-// doubled or renewed window, Refiner::due); here that is learnt N fits later, when the lane of
-// the stalled fit takes its next one, and N - 1 fits already under way are made at the usual
-// interval. What a fit finds depends only on the samples and on the fits before it in its own
-// lane, never on which thread finishes first: the same file gives the same summary every run.
+// doubled or renewed window, Refiner::due); here that is learnt when the stalled fit is applied,
+// after the fits already under way (N - 1 at most) were made at the usual interval, and from then
+// on, until a fit that does not stall, the fits are made one at a time. What a fit finds depends
+// only on the samples and on the fits before it, never on which thread finishes first: the same
+// file gives the same summary every run.
 
 #include <condition_variable>
 #include <cstdint>
