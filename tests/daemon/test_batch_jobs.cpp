@@ -4,9 +4,13 @@
 // discretization).
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <string>
+#include <vector>
 
 #include "daemon/batch/batch_run.hpp"
 #include "daemon/config/daemon_config.hpp"
@@ -28,11 +32,38 @@ config::DaemonConfig noisy_paper_run() {
   return cfg;
 }
 
-nlohmann::json run(const config::DaemonConfig& cfg, unsigned jobs) {
+nlohmann::json run(const config::DaemonConfig& cfg, unsigned jobs,
+                   const std::string& record_path = {}) {
   BatchOptions options;
   options.duration_s = 60.0;
   options.jobs = jobs;
+  options.record_path = record_path;
   return run_batch(cfg, options);
+}
+
+std::filesystem::path temp_path(const std::string& name) {
+  return std::filesystem::temp_directory_path() /
+         ("scp-test-" + std::to_string(::getpid()) + "-" + name);
+}
+
+// The loop times at which a recording's refined θ̂1 column changes: where each fit's view starts.
+std::vector<double> refined_changes(const std::filesystem::path& csv) {
+  std::ifstream in(csv);
+  std::string header, line, previous;
+  std::getline(in, header);
+  std::size_t column = 0;
+  for (std::size_t at = 0; at < header.find("refined_theta_hat1"); ++at)
+    column += header[at] == ',';
+  std::vector<double> changes;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::size_t begin = 0;
+    for (std::size_t i = 0; i < column; ++i) begin = line.find(',', begin) + 1;
+    const std::string value = line.substr(begin, line.find(',', begin) - begin);
+    if (value != previous) changes.push_back(std::stod(line.substr(0, line.find(','))));
+    previous = value;
+  }
+  return changes;
 }
 
 // The summary without what the wall clock decides (when, and how long things took).
@@ -49,8 +80,9 @@ constexpr double kThetaTolerance = 0.1;  // σ of the inline fit
 
 TEST(BatchJobs, ParallelFitsGiveTheInlineVerdictsAndThetaWithinTolerance) {
   const auto cfg = noisy_paper_run();
-  const auto inline_run = run(cfg, 1);
-  const auto parallel = run(cfg, 2);
+  const auto inline_csv = temp_path("inline.csv"), parallel_csv = temp_path("parallel.csv");
+  const auto inline_run = run(cfg, 1, inline_csv.string());
+  const auto parallel = run(cfg, 2, parallel_csv.string());
   ASSERT_TRUE(inline_run.contains("refined")) << inline_run.dump();
   ASSERT_TRUE(parallel.contains("refined")) << parallel.dump();
   EXPECT_EQ(parallel["refine"]["fits"], inline_run["refine"]["fits"]);
@@ -76,6 +108,22 @@ TEST(BatchJobs, ParallelFitsGiveTheInlineVerdictsAndThetaWithinTolerance) {
   // The loop never waits on the refinement's results: its own estimate is the same to the bit.
   EXPECT_EQ(parallel["theta_hat"], inline_run["theta_hat"]);
   EXPECT_EQ(parallel["cycles"], inline_run["cycles"]);
+  // Each recorded row carries the latest fit made at or before its loop time (recorder.hpp), the
+  // final window's too. Inline the recorder may take the row of a fit's cycle before the fit,
+  // which then shows from one period later, and the last rows before the final fit.
+  const std::vector<double> inline_rows = refined_changes(inline_csv);
+  const std::vector<double> parallel_rows = refined_changes(parallel_csv);
+  const std::vector<double> fit_times = {20.0, 30.0, 40.0, 50.0, 60.0};
+  ASSERT_EQ(parallel_rows.size(), fit_times.size()) << ::testing::PrintToString(parallel_rows);
+  ASSERT_GE(inline_rows.size(), fit_times.size() - 1) << ::testing::PrintToString(inline_rows);
+  for (std::size_t i = 0; i < fit_times.size(); ++i) {
+    EXPECT_NEAR(parallel_rows[i], fit_times[i], 0.5 * cfg.loop.period_s) << "fit " << i;
+    if (i < inline_rows.size()) {
+      EXPECT_NEAR(inline_rows[i], fit_times[i], 1.5 * cfg.loop.period_s) << "inline fit " << i;
+    }
+  }
+  std::filesystem::remove(inline_csv);
+  std::filesystem::remove(parallel_csv);
 }
 
 // Which lane finishes first never matters: two runs give the same summary.
