@@ -27,7 +27,8 @@ bool all_finite(const std::array<double, 6>& v) noexcept {
 class ParallelRefinement::SampleQueue final : public refine::FitObserver {
  public:
   void on_sample(const scp::refine::WindowSample& sample) noexcept override {
-    samples_.push_back(sample);  // a batch run may allocate; std::bad_alloc ends it
+    // A batch run may allocate: the queue holds the samples that came while fits were under way.
+    samples_.push_back(sample);
     ++pushed_;
   }
   void on_fit(const scp::refine::FitResult&, std::span<const scp::refine::WindowSample>,
@@ -165,7 +166,7 @@ ParallelRefinement::ParallelRefinement(const config::DaemonConfig& cfg, unsigned
       applied_cb_(std::move(applied)),
       observed_(std::make_unique<SampleQueue>()),
       shadow_(std::make_unique<refine::Refiner>(cfg.refine, cfg.estimator, cfg.loop.period_s)) {
-  shadow_->set_observer(observed_.get());
+  if (observer_ != nullptr) shadow_->set_observer(observed_.get());
   view_.interval_s = settings_.interval_s;
   for (unsigned i = 0; i < std::max(jobs, 2U); ++i)
     lanes_.push_back(std::make_unique<Lane>(cfg, *this));
@@ -213,6 +214,8 @@ void ParallelRefinement::drain(HandOffRing& ring) {
     shadow_->accept(handoff);
     for (auto& lane : lanes_) lane->pending.push_back(handoff);
   }
+  // With no fit under way the observer sees the samples now, as inline.
+  if (made_.empty() && observer_ != nullptr) observed_->show(*observer_, observed_->pushed());
   // A new window (a break in the data): no fit in it yet, and no stall to wait out.
   if (shadow_->view().windows != window_) {
     window_ = shadow_->view().windows;
