@@ -123,6 +123,7 @@ FitResult ParallelRefinement::Lane::fit_window(std::span<const WindowSample> win
     if (own.warm) return own;
   }
   int iterations = own.iterations, evaluations = own.evaluations;
+  WarmFallback why = own.warm_fallback;  // the reason inline would give: the neighbour's, if tried
   if (WarmStart warm; neighbour_warm(window, settings, warm)) {
     FitResult r = scp::refine::refit(window, warm, settings);
     iterations += r.iterations;
@@ -132,11 +133,12 @@ FitResult ParallelRefinement::Lane::fit_window(std::span<const WindowSample> win
       r.evaluations = evaluations;
       return r;
     }
+    why = r.warm_fallback;
   }
   FitSettings cold = settings;
   cold.warm = nullptr;
   FitResult result = scp::refine::fit(window, start, cold);
-  result.warm_fallback = own.warm_fallback;
+  result.warm_fallback = why;
   result.iterations += iterations;
   result.evaluations += evaluations;
   return result;
