@@ -1,6 +1,7 @@
 // The batch run of the paper's experiment (200 s at 1 kHz through the daemon's loop) as a multiple
 // of real time, with and without recording every cycle to CSV (the loop alone: refinement off),
-// and with the output-error refinement inline as config/paper.yaml ships it (a fit every 10 s).
+// and with the output-error refinement as config/paper.yaml ships it (a fit every 10 s), inline
+// (--jobs 1) and on one worker thread per core beside the loop (--jobs default).
 
 #include <benchmark/benchmark.h>
 
@@ -12,11 +13,12 @@
 
 namespace {
 
-void run(benchmark::State& state, bool record, bool refine = false) {
+void run(benchmark::State& state, bool record, bool refine = false, unsigned jobs = 1) {
   auto cfg = scp::config::load_config_file(std::string(SCP_SOURCE_DIR) + "/config/paper.yaml");
   cfg.refine.enabled = refine;
   scp::daemon::BatchOptions options;
   options.duration_s = 200.0;
+  options.jobs = jobs;
   const auto csv = std::filesystem::temp_directory_path() / "scp-bench-batch.csv";
   if (record) options.record_path = csv.string();
   double loop_seconds = 0.0;
@@ -39,10 +41,17 @@ void BM_PaperBatch200sRecorded(benchmark::State& state) {
 void BM_PaperBatch200sRefined(benchmark::State& state) {
   run(state, false, true);
 }
+void BM_PaperBatch200sRefinedJobs(benchmark::State& state) {
+  run(state, false, true, /*jobs=*/0);
+}
 
 BENCHMARK(BM_PaperBatch200s)->Unit(benchmark::kMillisecond)->Iterations(3)->UseRealTime();
 BENCHMARK(BM_PaperBatch200sRecorded)->Unit(benchmark::kMillisecond)->Iterations(2)->UseRealTime();
 BENCHMARK(BM_PaperBatch200sRefined)->Unit(benchmark::kMillisecond)->Iterations(1)->UseRealTime();
+BENCHMARK(BM_PaperBatch200sRefinedJobs)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1)
+    ->UseRealTime();
 
 }  // namespace
 

@@ -1,8 +1,10 @@
 #include "daemon/batch/batch_run.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <deque>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -12,6 +14,7 @@
 #include "daemon/analysis/health/health_agent.hpp"
 #include "daemon/analysis/refine/refine_worker.hpp"
 #include "daemon/analysis/refine/refiner.hpp"
+#include "daemon/batch/parallel_refinement.hpp"
 #include "daemon/config/binder.hpp"
 #include "daemon/core/loop.hpp"
 #include "daemon/outputs/recording/recorder.hpp"
@@ -48,8 +51,15 @@ std::unique_ptr<drivers::Driver> batch_driver(config::DaemonConfig& cfg,
   return replay_driver;
 }
 
+// Fits made at once: options.jobs, 0 meaning one per core.
+unsigned batch_jobs(const BatchOptions& options) {
+  if (options.jobs != 0) return options.jobs;
+  return std::max(1U, std::thread::hardware_concurrency());
+}
+
 // One batch run: the daemon's loop, cycle after cycle without sleeping, on loop time; the
-// refinement inline between cycles (the same fits every run); the recorder on its thread.
+// refinement inline between cycles or on worker threads beside them (the same fits every run);
+// the recorder on its thread.
 class BatchRun {
  public:
   BatchRun(config::DaemonConfig cfg, const BatchOptions& options);
@@ -57,7 +67,12 @@ class BatchRun {
 
  private:
   void run_cycles();
+  void refine_after_cycle(double t);
+  void refine_at_end(double t_last);
   void refine_now(double t);
+  void push_refined(const refine::RefinedView& view);
+  void forward_rows();
+  void start_refinement();
   void start_health();
   nlohmann::json summary(double wall_s) const;
 
@@ -73,7 +88,12 @@ class BatchRun {
   std::unique_ptr<RefinedRing> refined_ring_;
   std::optional<Recorder> recorder_;
   std::unique_ptr<HandOffRing> handoff_;
-  std::optional<refine::Refiner> refiner_;
+  std::optional<refine::Refiner> refiner_;  // jobs 1: the fits inline
+  std::unique_ptr<ParallelRefinement> parallel_;
+  // With parallel fits and a recording, the loop's rows wait here until the fits made before
+  // them are applied, so that each row carries the fit inline would have shown it.
+  std::unique_ptr<RecordRing> staged_rows_;
+  std::deque<RecordRow> held_rows_;
   // The health monitor, inline with the refinement; every event kept for the summary.
   std::unique_ptr<health::HealthLink> health_link_;
   std::unique_ptr<health::HealthAgent> health_;
@@ -92,13 +112,24 @@ BatchRun::BatchRun(config::DaemonConfig cfg, const BatchOptions& options)
     refined_ring_ = std::make_unique<RefinedRing>();
     recorder_.emplace(options_.record_path, *record_ring_, refined_ring_.get());
   }
-  if (cfg_.refine.enabled) {
-    handoff_ = std::make_unique<HandOffRing>();
-    refiner_.emplace(cfg_.refine, cfg_.estimator, cfg_.loop.period_s);
-    start_health();
-  }
-  loop_.emplace(cfg_, *driver_, *published_, *commands_, record_ring_.get(),
+  if (cfg_.refine.enabled) start_refinement();
+  loop_.emplace(cfg_, *driver_, *published_, *commands_,
+                staged_rows_ ? staged_rows_.get() : record_ring_.get(),
                 /*block_when_record_full=*/true, handoff_.get());
+}
+
+void BatchRun::start_refinement() {
+  handoff_ = std::make_unique<HandOffRing>();
+  start_health();
+  const unsigned jobs = batch_jobs(options_);
+  if (jobs <= 1) {
+    refiner_.emplace(cfg_.refine, cfg_.estimator, cfg_.loop.period_s);
+    refiner_->set_observer(health_.get());
+    return;
+  }
+  parallel_ = std::make_unique<ParallelRefinement>(
+      cfg_, jobs, health_.get(), [this](const refine::RefinedView& v) { push_refined(v); });
+  if (recorder_) staged_rows_ = std::make_unique<RecordRing>();
 }
 
 // The baseline file if there is one, else the run's first converged window of refine.window_s
@@ -116,7 +147,6 @@ void BatchRun::start_health() {
   } else {
     health_->runner().adopt_first_fit(cfg_.refine.window_s - cfg_.loop.period_s);
   }
-  refiner_->set_observer(health_.get());
 }
 
 nlohmann::json BatchRun::run() {
@@ -149,25 +179,53 @@ void BatchRun::run_cycles() {
     }
     if (loop_->cycle(now) == CycleResult::end_of_data) break;
     t_last = now.t;
-    if (refiner_) {
-      refiner_->drain(*handoff_);
-      if (refiner_->due()) refine_now(now.t);
-    }
+    refine_after_cycle(now.t);
   }
   loop_->shutdown();
+  refine_at_end(t_last);
+}
+
+void BatchRun::refine_after_cycle(double t) {
   if (refiner_) {
     refiner_->drain(*handoff_);
-    if (refiner_->has_unfitted_data()) refine_now(t_last);  // the final window
-    // What the samples after the last fit raised, which no fit's poll will collect now.
-    if (health_) health_->poll();
+    if (refiner_->due()) refine_now(t);
+  } else if (parallel_) {
+    parallel_->after_cycle(*handoff_, t, refine::paper_estimate(published_->load()));
+    forward_rows();
   }
 }
 
+void BatchRun::refine_at_end(double t_last) {
+  if (refiner_) {
+    refiner_->drain(*handoff_);
+    if (refiner_->has_unfitted_data()) refine_now(t_last);  // the final window
+  } else if (parallel_) {
+    parallel_->finish(*handoff_, t_last, refine::paper_estimate(published_->load()));
+  }
+  forward_rows();
+  // What the samples after the last fit raised, which no fit's poll will collect now.
+  if (health_) health_->poll();
+}
+
 void BatchRun::refine_now(double t) {
-  const refine::RefinedView& view =
-      refiner_->fit(refine::paper_estimate(published_->load()), t, clock::unix_ns());
+  push_refined(refiner_->fit(refine::paper_estimate(published_->load()), t, clock::unix_ns()));
+}
+
+void BatchRun::push_refined(const refine::RefinedView& view) {
   if (refined_ring_) {
     while (!refined_ring_->try_push(view)) std::this_thread::yield();  // the recorder catches up
+  }
+}
+
+// The rows no fit still under way precedes, to the recorder.
+void BatchRun::forward_rows() {
+  if (!staged_rows_) return;
+  RecordRow row;
+  while (staged_rows_->try_pop(row)) held_rows_.push_back(row);
+  const std::optional<double> wait_from = parallel_->first_unapplied_t();
+  while (!held_rows_.empty() && (!wait_from || held_rows_.front().t < *wait_from)) {
+    while (!record_ring_->try_push(held_rows_.front())) std::this_thread::yield();
+    held_rows_.pop_front();
   }
 }
 
@@ -198,7 +256,9 @@ void put_health(nlohmann::json& out, const health::HealthAgent& agent) {
 // ESTIMATE as a client would read it at the end (docs/protocol.md), and the run's own members.
 nlohmann::json BatchRun::summary(double wall_s) const {
   const PublishedState last = published_->load();
-  const refine::RefinedView* refined = refiner_ ? &refiner_->view() : nullptr;
+  const refine::RefinedView* refined = refiner_    ? &refiner_->view()
+                                       : parallel_ ? &parallel_->view()
+                                                   : nullptr;
   nlohmann::json out = server::estimate_json(last.estimate, refined, last.uptime_s);
   out.erase("class");
   if (refined != nullptr) {

@@ -21,12 +21,16 @@ struct BatchOptions {
   // CSV files (or directories of them, e.g. a rotated recording) to feed, in time order, instead
   // of the configured driver; empty = none.
   std::vector<std::string> replay_paths;
+  // Fits made at once on worker threads beside the loop (parallel_refinement.hpp); 1 = inline
+  // between the loop's cycles, as the refinement ran before; 0 = one per core.
+  unsigned jobs = 0;
 };
 
 // Runs and returns the summary: t, theta_hat, sigma, (theta_true, rel_error with the simulated
 // driver), state, fault_reason, cycles, skipped, wall_time_s, realtime_factor, and with refine
-// enabled paper_biased, best, refined (as in ESTIMATE) and refine counters. The refinement runs
-// inline: a fit every refine.interval_s of loop time and one at the end. Throws
+// enabled paper_biased, best, refined (as in ESTIMATE) and refine counters. The refinement makes
+// a fit every refine.interval_s of loop time and one at the end, inline or on options.jobs
+// worker threads; either way the same file gives the same summary every run. Throws
 // std::runtime_error (driver, recorder) with a message for the user.
 nlohmann::json run_batch(config::DaemonConfig config, const BatchOptions& options);
 

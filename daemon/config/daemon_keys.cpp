@@ -316,7 +316,7 @@ void declare_state(Binder state, StateSettings& out) {
 void declare_refine(Binder& refine, RefineSettings& out) {
   refine.boolean("enabled", out.enabled, true,
                  "run the output-error refinement beside the paper's law (a worker thread "
-                 "below the loop; inline in --offline runs)");
+                 "below the loop; in --offline runs --jobs threads beside it, or inline)");
   refine.number("window_s", out.window_s, 300.0, 1.0, 3600.0,
                 "loop time of the sliding window fitted; memory " +
                     std::to_string(sizeof(scp::refine::WindowSample)) +

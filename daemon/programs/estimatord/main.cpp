@@ -23,9 +23,10 @@ scp::cli::ProgramInfo program_info() {
   info.name = "scp-estimatord";
   info.section = 8;
   info.summary = "online parameter identification of super-coiled polymer actuators";
-  info.synopsis = {"[--config FILE] [--instance NAME] [--log-level LEVEL]", "--check-config FILE",
-                   "--config FILE --offline [--duration S] [--record CSV] [--replay CSV] [--json]",
-                   "--version | --help | --print-config-reference[=man]"};
+  info.synopsis = {
+      "[--config FILE] [--instance NAME] [--log-level LEVEL]", "--check-config FILE",
+      "--config FILE --offline [--duration S] [--record CSV] [--replay CSV] [--jobs N] [--json]",
+      "--version | --help | --print-config-reference[=man]"};
   info.description = {
       "scp-estimatord reads a super-coiled polymer (SCP) actuator through a driver (a simulated "
       "actuator, a recorded CSV, a Modbus DAQ or a CAN device) in a fixed-period real-time loop, "
@@ -144,6 +145,12 @@ void declare_options(CLI::App& app, Options& o) {
                  "feed these CSV files (t,x,xdot,T,V; .csv.gz read as they are), or a directory's "
                  "*.csv and *.csv.gz in name order (a rotated recording), instead of the driver")
       ->type_name("FILE|DIR ...")
+      ->needs(offline);
+  app.add_option("--jobs", o.batch.jobs,
+                 "batch run: fits made at once on worker threads beside the loop (default: one "
+                 "per core; 1 = inline between the loop's cycles)")
+      ->type_name("N")
+      ->check(CLI::Range(1U, 256U))
       ->needs(offline);
   app.add_flag("--json", o.json_only,
                "batch run: print only the JSON summary line on stdout (no table)")
