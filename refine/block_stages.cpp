@@ -34,7 +34,7 @@ PassSettings thermal_pass_settings() {
 
 PassSettings thermal_pass_settings(const FitSettings& settings) {
   PassSettings ps = thermal_pass_settings();
-  ps.extensions = estimates_optional_slots(settings);
+  carry_optional_slots(settings, ps);
   return ps;
 }
 
@@ -76,7 +76,7 @@ StopReason fit_mechanical(FitContext& ctx, FitState& state) {
   const Coordinates c(mechanical_slots(ctx.settings), state.p);
   PassSettings ps;
   ps.weight = {1.0, 0.0};
-  ps.extensions = estimates_optional_slots(ctx.settings);
+  carry_optional_slots(ctx.settings, ps);
   const StageResult r = run_stage(ctx.window, c, ps, ctx.max_iterations, ctx.budget, state.range);
   state.iterations += r.iterations;
   if (r.pass.finite) {

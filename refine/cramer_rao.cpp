@@ -21,7 +21,8 @@ Matrix6 cramer_rao_bound(std::span<const WindowSample> window, const Vector6& th
   FreeMask free = free_slots(known, nuisance);
   free_extensions(extensions, free);
   PassSettings ps;
-  ps.extensions = extensions.any() || !nuisance.sensor_lag.fixed;
+  ps.extensions = extensions.any();
+  ps.sensor_lag = !nuisance.sensor_lag.fixed;
   for (int c = 0; c < 2; ++c) {
     const double s = noise_sigma[c];
     ps.weight[c] = std::isfinite(s) && s > 0.0 ? 1.0 / (s * s) : 0.0;

@@ -64,7 +64,7 @@ bool rescore_variances(const FitContext& ctx, const PassResult& pass, NoiseVaria
 PassSettings joint_pass_settings(const FitSettings& settings, const FitState& state) {
   PassSettings ps;
   ps.weight = {1.0 / state.noise.x, 1.0 / state.noise.tbar};
-  ps.extensions = estimates_optional_slots(settings);
+  carry_optional_slots(settings, ps);
   const bool timing = settings.sample_timing_jitter;
   ps.timing = timing;
   ps.timing_variance = state.noise.timing;

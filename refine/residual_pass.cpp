@@ -38,9 +38,14 @@ constexpr bool in_x_base(int s) {
 constexpr bool in_tbar_base(int s) {
   return in_tbar_output(s) && !is_optional(s);
 }
-// Without the optional slots (PassSettings::extensions false: their columns are 0).
+constexpr bool in_tbar_lagged(int s) {
+  return in_tbar_base(s) || s == kSensorLagSlot;
+}
+// Without the optional slots (PassSettings::extensions, sensor_lag false: their columns are 0),
+// with the sensor's lag only, with all of them.
 constexpr auto kXRowSlots = row_slots<in_x_base>();
 constexpr auto kTbarRowSlots = row_slots<in_tbar_base>();
+constexpr auto kTbarRowSlotsLagged = row_slots<in_tbar_lagged>();
 constexpr auto kXRowSlotsExtended = row_slots<in_x_output>();
 constexpr auto kTbarRowSlotsExtended = row_slots<in_tbar_output>();
 
@@ -71,16 +76,22 @@ inline void add_outer_upper(ParamMatrix& h, const ParamVector& v, double alpha) 
   add_outer_upper<Slots>(h, v, alpha, std::make_index_sequence<Slots.size()>{});
 }
 
-// x's and T̄'s rows of one sample into JᵀWJ's upper triangle, over the slots they can touch.
+// x's and T̄'s rows of one sample into JᵀWJ's upper triangle, over the slots they can touch
+// (x never sees the sensor's lag).
 inline void add_rows(ParamMatrix& h, const ParamVector& jx, double wx, const ParamVector& jt,
-                     double wt, bool extended) noexcept {
-  if (extended) {
+                     double wt, const PassSettings& settings) noexcept {
+  if (settings.extensions) {
     if (wx != 0.0) add_outer_upper<kXRowSlotsExtended>(h, jx, wx);
     if (wt != 0.0) add_outer_upper<kTbarRowSlotsExtended>(h, jt, wt);
     return;
   }
   if (wx != 0.0) add_outer_upper<kXRowSlots>(h, jx, wx);
-  if (wt != 0.0) add_outer_upper<kTbarRowSlots>(h, jt, wt);
+  if (wt == 0.0) return;
+  if (settings.sensor_lag) {
+    add_outer_upper<kTbarRowSlotsLagged>(h, jt, wt);
+  } else {
+    add_outer_upper<kTbarRowSlots>(h, jt, wt);
+  }
 }
 
 // Overlapping batch means: Σ over windows of B consecutive scores of (Σ s)(Σ s)ᵀ/B equals the
@@ -387,7 +398,7 @@ WeightedSample add_timing_weighted(const PassSettings& settings, double wx, doub
   const double omega = outlier_weight(settings.outlier_threshold, ref.x_residual(sample, settings),
                                       ref.tbar_residual(sample, settings, t0), w_xx, w_xt, w_tt);
   if (omega < 1.0) ++r.outliers;
-  add_rows(r.jtwj, jx, omega * w_xx, jt, omega * w_tt, settings.extensions);
+  add_rows(r.jtwj, jx, omega * w_xx, jt, omega * w_tt, settings);
   if (w_xt != 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, jt, omega * w_xt);
   const Eigen::Vector2d e = w * Eigen::Vector2d(rx, rt);  // W r
   WeightedSample out;
@@ -436,7 +447,7 @@ bool jacobian_pass(std::span<const WindowSample> window, const ParamVector& p,
   ParamVector* batch_score = nullptr;
   // The sensor's lag: applied where it is not 0 or is estimated (its sensitivity at 0 is −dT̄/dt).
   SensorLag lag(p[kSensorLagSlot]);
-  const bool lagged = p[kSensorLagSlot] != 0.0 || settings.extensions;
+  const bool lagged = p[kSensorLagSlot] != 0.0 || settings.sensor_lag;
   lag.start(sim.state().tbar, &sim.dtbar());
   double rx = 0.0, rt = 0.0;
   bool stopped = false;
@@ -462,7 +473,7 @@ bool jacobian_pass(std::span<const WindowSample> window, const ParamVector& p,
     }
     WeightedSample sample;
     if (!timing) {
-      add_rows(r.jtwj, jx, wx, jt, wt, settings.extensions);
+      add_rows(r.jtwj, jx, wx, jt, wt, settings);
       sample.score = wx * rx * jx + wt * rt * jt;
     } else {
       sample = add_timing_weighted(settings, wx, wt, ref, window[k], sums.t0, rx, rt, jx, jt, r);

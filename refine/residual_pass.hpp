@@ -24,6 +24,9 @@ struct PassSettings {
   // Jacobian passes: also the sensitivities to the extensions' slots (a fit that estimates one;
   // without, their columns of J are left 0). The simulation runs with p's extensions either way.
   bool extensions = false;
+  // Jacobian passes: also the sensitivity to the sensor's lag (refine/sensor_lag.hpp), whose
+  // reading the pass applies wherever p's lag is not 0.
+  bool sensor_lag = false;
   // > 0: also accumulate the Bartlett long-run covariance of the score with this bandwidth
   // (lags + 1), for the Newey–West covariance.
   int hac_bandwidth = 0;

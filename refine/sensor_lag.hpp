@@ -41,12 +41,11 @@ class SensorLag {
       tbar_ = tbar;
       return y_;
     }
-    const double r = dt / tau_, e = std::exp(-r), one_minus_e = -std::expm1(-r);
-    const double c = 1.0 - one_minus_e / r;
+    if (dt != step_.dt) step_ = Step(dt, tau_);  // a uniformly sampled window: once per pass
+    const double e = step_.e, one_minus_e = step_.one_minus_e, c = step_.c;
     const double y = e * y_ + (one_minus_e - c) * tbar_ + c * tbar;
     if (dtbar != nullptr) {
-      // ∂e/∂τ = e·r/τ, ∂c/∂τ = e/τ − (1 − e)/Δ; the T̄ terms' sensitivities through the same step.
-      const double de = e * r / tau_, dc = e / tau_ - one_minus_e / dt;
+      const double de = step_.de, dc = step_.dc;
       const double dlag = de * y_ + e * dy_[kSensorLagSlot] + (-de - dc) * tbar_ + dc * tbar;
       dy_ = e * dy_ + (one_minus_e - c) * dtbar_ + c * *dtbar;
       dy_[kSensorLagSlot] = dlag;
@@ -62,7 +61,23 @@ class SensorLag {
   const ParamVector& sensitivities() const noexcept { return dy_; }
 
  private:
+  // The step's coefficients for one Δ: e, 1 − e, c and their ∂/∂τ (∂e/∂τ = e·r/τ,
+  // ∂c/∂τ = e/τ − (1 − e)/Δ, r = Δ/τ).
+  struct Step {
+    Step() = default;
+    Step(double dt_, double tau) noexcept
+        : dt(dt_),
+          e(std::exp(-dt_ / tau)),
+          one_minus_e(-std::expm1(-dt_ / tau)),
+          c(1.0 - one_minus_e * tau / dt_),
+          de(e * dt_ / (tau * tau)),
+          dc(e / tau - one_minus_e / dt_) {}
+    double dt = -1.0;  // Δ > 0 always: never a false hit
+    double e = 0.0, one_minus_e = 0.0, c = 0.0, de = 0.0, dc = 0.0;
+  };
+
   double tau_;
+  Step step_;
   double y_ = 0.0, tbar_ = 0.0;
   ParamVector dy_ = ParamVector::Zero(), dtbar_ = ParamVector::Zero();
 };

@@ -32,10 +32,11 @@ PassSettings thermal_pass_settings();
 // The same for a fit with FitSettings's extensions (their sensitivities, where any is estimated).
 PassSettings thermal_pass_settings(const FitSettings& settings);
 
-// Whether a fit under `settings` estimates an optional slot (an extension, the sensor's lag):
-// its passes then carry their sensitivities (PassSettings::extensions).
-inline bool estimates_optional_slots(const FitSettings& settings) {
-  return settings.extensions.any() || !settings.nuisance.sensor_lag.fixed;
+// The optional slots a fit under `settings` estimates (an extension, the sensor's lag): its
+// Jacobian passes then carry their sensitivities (PassSettings::extensions, sensor_lag).
+inline void carry_optional_slots(const FitSettings& settings, PassSettings& ps) {
+  ps.extensions = settings.extensions.any();
+  ps.sensor_lag = !settings.nuisance.sensor_lag.fixed;
 }
 
 // Every slot the joint stage and the covariance estimate: θ unless known, the initial state, the

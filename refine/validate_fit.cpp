@@ -66,7 +66,6 @@ ValidationReport validate_fit(std::span<const WindowSample> window, const FitRes
   settings = validation_settings(window, fit.theta, free, settings);
   if (window.empty()) return ResidualValidator(fit.theta, settings).finish();
   ResidualValidator validator(fit.theta, settings);
-  extended = extended || free[kSensorLagSlot];
   SensitivitySimulator sim(fit.theta, fit.initial_state, false, tc, extended);
   SensorLag lag(fit.nuisance.sensor_lag.value);
   lag.start(sim.state().tbar, &sim.dtbar());
