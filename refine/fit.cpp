@@ -152,8 +152,9 @@ FitResult fit_cold(std::span<const WindowSample> window, const Vector6& theta_st
                                        ? choose_voltage_interval(window, theta_start, settings)
                                        : settings.voltage_interval;
   std::vector<WindowSample> storage;
-  FitResult result = fit_prepared(prepare_window(window, settings.voltage_hold, interval, storage),
-                                  theta_start, settings);
+  FitResult result = fit_prepared(
+      prepare_window(window, settings.voltage_hold, interval, storage, settings.voltage_shape),
+      theta_start, settings);
   result.voltage_interval = interval;
   return result;
 }

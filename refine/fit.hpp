@@ -16,6 +16,7 @@
 #include <array>
 #include <atomic>
 #include <cstddef>
+#include <limits>
 #include <span>
 
 #include "estimator/estimator.hpp"
@@ -45,6 +46,10 @@ struct WindowSample {
   // true: the voltage ramps linearly from the previous sample's `voltage` at its t to this one's
   // at t (a first-order hold; voltage_since is then not used), V² quadratic over the interval.
   bool voltage_ramp = false;
+  // With voltage_ramp, when finite: the voltage at the interval's midpoint, which makes V² the
+  // quadratic through the interval's ends and middle (refine/voltage_timing.hpp takes it from a
+  // cubic through four rows of a continuous voltage). NaN: the chord's, V linear.
+  double voltage_mid = std::numeric_limits<double>::quiet_NaN();
 };
 
 // The model's state at the window's first sample: x, ẋ, T̄.
@@ -108,6 +113,8 @@ struct FitSettings {
   estimator::VoltageHold voltage_hold = estimator::VoltageHold::zoh;
   // Which interval a row's voltage belongs to (refine/fit_terms.hpp).
   VoltageInterval voltage_interval = VoltageInterval::before;
+  // With foh: how the voltage varied between the rows (refine/fit_terms.hpp).
+  VoltageShape voltage_shape = VoltageShape::linear;
   // The nuisance terms of a real bench, each estimated or fixed (refine/fit_terms.hpp).
   NuisanceSettings nuisance;
   // The model's extensions (refine/fit_terms.hpp), off unless asked for.

@@ -29,6 +29,13 @@ inline constexpr NameTable<VoltageInterval, 3> kVoltageIntervalNames{
      {VoltageInterval::estimate, "estimate"}}};
 const char* to_text(VoltageInterval interval) noexcept;  // kVoltageIntervalNames
 
+// How a voltage read with a first-order hold (estimator::VoltageHold::foh) varied between the
+// rows: linearly (a DAC that ramps from one command to the next) or smoothly (a continuous
+// drive sampled at the rows: V² through the cubic of four rows, refine/voltage_timing.hpp).
+enum class VoltageShape : std::uint8_t { linear, smooth };
+inline constexpr NameTable<VoltageShape, 2> kVoltageShapeNames{
+    {{VoltageShape::linear, "linear"}, {VoltageShape::smooth, "smooth"}}};
+
 // One nuisance term: estimated, or held at `value` (its units: FitSettings). The library's
 // default holds it at 0 (the paper's model); the daemon estimates the three output terms unless
 // its configuration holds them (refine.nuisance.*). What freeing them costs a short window is in

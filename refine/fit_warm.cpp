@@ -24,7 +24,8 @@ bool same_settings(const FitSettings& a, const FitSettings& b) {
          a.sample_timing_jitter == b.sample_timing_jitter &&
          a.outlier_threshold == b.outlier_threshold &&
          a.landing_timing_jitter == b.landing_timing_jitter && a.voltage_hold == b.voltage_hold &&
-         a.voltage_interval == b.voltage_interval && same(a.nuisance.x_zero, b.nuisance.x_zero) &&
+         a.voltage_interval == b.voltage_interval && a.voltage_shape == b.voltage_shape &&
+         same(a.nuisance.x_zero, b.nuisance.x_zero) &&
          same(a.nuisance.ambient_offset, b.nuisance.ambient_offset) &&
          same(a.nuisance.ambient_drift, b.nuisance.ambient_drift) &&
          same(a.nuisance.sensor_lag, b.nuisance.sensor_lag) &&
@@ -170,8 +171,8 @@ FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
   if (const WarmFallback why = applicable(warm, window, settings); why != WarmFallback::none)
     return declined(result, why);
   std::vector<WindowSample> storage;
-  const std::span<const WindowSample> prepared =
-      prepare_window(window, settings.voltage_hold, warm.voltage_interval, storage);
+  const std::span<const WindowSample> prepared = prepare_window(
+      window, settings.voltage_hold, warm.voltage_interval, storage, settings.voltage_shape);
   result = joint_refit(prepared, warm, with_chosen_extensions(settings, warm.extensions),
                        kWarmIterations);
   if (!result.validated && !result.converged) return declined(result, WarmFallback::not_converged);

@@ -11,8 +11,15 @@ int pieces_between(const WindowSample& prev, const WindowSample& cur, Piece out[
   const double dt = cur.t - prev.t;
   if (!(dt > 0.0)) return 0;
   if (cur.voltage_ramp) {
-    const double a = prev.voltage, slope = (cur.voltage - prev.voltage) / dt;
-    out[0] = {dt, a * a, 2.0 * a * slope, slope * slope};
+    const double a = prev.voltage, b = cur.voltage;
+    if (!std::isfinite(cur.voltage_mid)) {
+      const double slope = (b - a) / dt;
+      out[0] = {dt, a * a, 2.0 * a * slope, slope * slope};
+      return 1;
+    }
+    // V² through its values at the interval's start, middle and end.
+    const double u0 = a * a, um = cur.voltage_mid * cur.voltage_mid, u1 = b * b;
+    out[0] = {dt, u0, (4.0 * um - 3.0 * u0 - u1) / dt, 2.0 * (u0 - 2.0 * um + u1) / (dt * dt)};
     return 1;
   }
   const double u_prev = prev.voltage * prev.voltage;

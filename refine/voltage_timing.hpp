@@ -24,14 +24,26 @@ constexpr bool reads_as_recorded(estimator::VoltageHold hold, VoltageInterval in
   return hold == estimator::VoltageHold::zoh && interval == VoltageInterval::before;
 }
 
-// `window` as the model reads it under `hold` and `interval` (before or after): `window` itself
-// when it reads_as_recorded, else `storage` filled and returned.
+// `window` as the model reads it under `hold` and `interval` (before or after), and with foh
+// `shape`: `window` itself when it reads_as_recorded, else `storage` filled and returned.
 std::span<const WindowSample> prepare_window(std::span<const WindowSample> window,
                                              estimator::VoltageHold hold, VoltageInterval interval,
-                                             std::vector<WindowSample>& storage);
+                                             std::vector<WindowSample>& storage,
+                                             VoltageShape shape = VoltageShape::linear);
+
+// VoltageHold::foh with VoltageShape::smooth: each interval's midpoint voltage
+// (WindowSample::voltage_mid) from the cubic through the rows before and after it, where the four
+// are equally spaced (within 1e-6 of a period): V² is then exact to O(Δ⁴·V'''') where the chord's
+// V² is off by Δ²·V''/8 (of V·V''). On a continuous voltage that difference is what the inertia of
+// θ1..θ4 (a 0.8 ms lag between heating and motion) sees: docs/numerics.md, "The voltage's timing".
+// prepare_window calls it; the rows at a window's ends and beside a gap keep the chord. Wrong for a
+// DAC that ramps linearly between commands (VoltageShape::linear), whose slope changes at every
+// row.
+void add_cubic_midpoints(std::span<WindowSample> window) noexcept;
 
 // Row `cur` as the model reads it under `hold` and `interval` (before or after), `prev` the row
-// recorded before it: what prepare_window makes of every row but the first.
+// recorded before it: what prepare_window makes of every row but the first (without the cubic
+// midpoints, which need the rows around it: a warm start's shift steps with the chord).
 WindowSample prepared_sample(const WindowSample& prev, const WindowSample& cur,
                              estimator::VoltageHold hold, VoltageInterval interval) noexcept;
 

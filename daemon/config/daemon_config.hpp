@@ -155,6 +155,8 @@ struct RefineSettings {
   // driver is made (resolve_voltage_interval).
   VoltageIntervalChoice voltage_interval_choice = VoltageIntervalChoice::automatic;
   scp::refine::VoltageInterval voltage_interval = scp::refine::VoltageInterval::before;
+  // With estimator.voltage_hold foh: how the voltage varied between the rows.
+  scp::refine::VoltageShape voltage_shape = scp::refine::VoltageShape::smooth;
   // The nuisance terms (estimated unless fixed) and the model's extensions (issue 28).
   scp::refine::NuisanceSettings nuisance;
   scp::refine::ExtensionSettings extensions;

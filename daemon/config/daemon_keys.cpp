@@ -402,6 +402,11 @@ void declare_refine_bench(Binder& refine, RefineSettings& out) {
       "daemon's drivers and recordings, V_since), `after` it (a log writing the command "
       "issued at t), `estimate` (fit both, keep the better). `auto`: before, except "
       "estimate for a replayed file (--replay or driver.type: replay) without a V_since column");
+  refine.choice("voltage_shape", out.voltage_shape, scp::refine::VoltageShape::smooth,
+                scp::refine::kVoltageShapeNames,
+                "with estimator.voltage_hold foh, how the voltage varied between the rows: "
+                "`smooth` (a continuous drive sampled at the rows: V² from the cubic through four "
+                "rows) or `linear` (a DAC ramping from one command to the next)");
   Binder nuisance = refine.section("nuisance",
                                    "nuisance terms of a real bench, estimated beside θ unless "
                                    "held at a declared value (published in refined.nuisance)");

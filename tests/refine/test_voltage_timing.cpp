@@ -140,19 +140,25 @@ TEST(VoltageTiming, ARampingDacIsFitWithFirstOrderHoldToOneInAMillion) {
   EXPECT_LT(max_relative_error(r.theta, truth), 1e-6);
 }
 
-// A continuous V read as linear between samples: the interpolation's error, V''·τ²/8, leaves
-// θ1..θ4's common scale (a sub-millisecond lag) off by ~1e-4 on this slow voltage, growing as
-// (ωτ)² with faster content (docs/numerics.md, "The voltage's timing"); a held V would be off by
-// half a period.
+// A continuous V read as smooth between samples (the cubic through four rows): V² exact to
+// O(τ⁴·V''''), θ to one in a million. Read as linear, the chord's error V''·τ²/8 leaves θ1..θ4's
+// common scale (a sub-millisecond lag) off by ~1e-4 on this slow voltage, growing as (ωτ)² with
+// faster content (docs/numerics.md, "The voltage's timing"); a held V would be off by half a
+// period.
 TEST(VoltageTiming, AContinuousVoltageIsFitWithFirstOrderHold) {
   const Vector6 truth = test::theta_of(test::paper_actuator());
   FitSettings settings;
   settings.voltage_hold = estimator::VoltageHold::foh;
+  settings.voltage_shape = VoltageShape::smooth;
   const FitResult r = fit(continuous(), biased_start(truth), settings);
-  print_errors("continuous V, foh", r, truth);
+  print_errors("continuous V, foh, smooth", r, truth);
   EXPECT_TRUE(r.converged) << r.message;
   const double err = max_relative_error(r.theta, truth);
-  EXPECT_LT(err, 1e-3);
+  EXPECT_LT(err, 1e-6);
+  settings.voltage_shape = VoltageShape::linear;
+  const FitResult chord = fit(continuous(), biased_start(truth), settings);
+  print_errors("continuous V, foh, linear", chord, truth);
+  EXPECT_GT(max_relative_error(chord.theta, truth), 100 * err);
   EXPECT_LT(std::abs(r.theta[kCooling] / truth[kCooling] - 1.0), 1e-6);
   EXPECT_LT(std::abs(r.theta[kHeating] / truth[kHeating] - 1.0), 1e-6);
   const FitResult held = fit(continuous(), biased_start(truth));

@@ -232,6 +232,7 @@ scp::refine::FitSettings Refiner::make_fit_settings() const {
   fit_settings.landing_timing_jitter = settings_.estimate_link_timing;
   fit_settings.voltage_hold = voltage_hold_;
   fit_settings.voltage_interval = settings_.voltage_interval;
+  fit_settings.voltage_shape = settings_.voltage_shape;
   fit_settings.nuisance = settings_.nuisance;
   fit_settings.extensions = settings_.extensions;
   fit_settings.declared_noise = {settings_.declared_noise[0], settings_.declared_noise[1]};
@@ -289,8 +290,8 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
       seed = Seed::paper;
     }
   }
-  const std::span<const scp::refine::WindowSample> prepared =
-      scp::refine::prepare_window(window_.samples(), voltage_hold_, r.voltage_interval, prepared_);
+  const std::span<const scp::refine::WindowSample> prepared = scp::refine::prepare_window(
+      window_.samples(), voltage_hold_, r.voltage_interval, prepared_, settings_.voltage_shape);
   validate(r, paper, prepared);
   const double duration =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
