@@ -183,7 +183,8 @@ class HealthMonitor {
   void update_reference(double t);
   void design_cusums();
   void fast_alarm(const ScoreBlock& block);
-  ChangePoint fast_change(const ChangeEvidence& since, double onset, double t) const;
+  ChangePoint fast_change(const ChangeEvidence& since, const ScoreBlock& plain, double onset,
+                          double t) const;
   void name_block(const ScoreBlock& block);
   void name_from_window(const WindowEstimate& w);
   void raise_name(const ChangePoint& change);

@@ -152,22 +152,27 @@ void HealthMonitor::fast_alarm(const ScoreBlock& block) {
   for (int i = 1; i < kParams; ++i)
     if (cusums_[i].ratio() > cusums_[channel].ratio()) channel = i;
   double onset = cusums_[channel].onset();
-  ChangeEvidence since =
-      weigh_change(recent_blocks_, naming_start(onset), reference_at(onset).theta, kNameMargin);
-  const int best = since.name.best.parameter;
-  const double theta = std::abs(reference_at(onset).theta[std::max(best, 0)]);
-  if (best < 0 || !(std::abs(since.name.best.delta) >= settings_.min_relative_change * theta)) {
+  const auto sum_since = [this](double from) {
+    ScoreBlock sum;
+    for (const auto& b : recent_blocks_)
+      if (b.t_begin >= from) sum.add(b);
+    return sum;
+  };
+  // Whether the change matters and whether it is a step: from the plain sums since the onset
+  // (every block, the one the change began in too), as the CUSUMs see them.
+  const ScoreBlock since = sum_since(onset);
+  const Isolation iso = isolate(since.score, since.information);
+  const double theta = std::abs(reference_at(onset).theta[std::max(iso.parameter, 0)]);
+  if (iso.parameter < 0 || !(std::abs(iso.delta) >= settings_.min_relative_change * theta)) {
     ++report_.dismissed;
     for (auto& c : cusums_) c.reset();
     return;
   }
-  if (late_drift(best, onset)) return;
-  if (onset != cusums_[channel].onset()) {
-    ChangeEvidence from_step =
-        weigh_change(recent_blocks_, naming_start(onset), reference_at(onset).theta, kNameMargin);
-    if (from_step.name.best.parameter >= 0) since = from_step;
-  }
-  const ChangePoint c = fast_change(since, onset, block.t_end);
+  if (late_drift(iso.parameter, onset)) return;
+  // Which parameter: from the blocks after the onset's, with the nuisance (naming.hpp).
+  const ChangeEvidence evidence =
+      weigh_change(recent_blocks_, naming_start(onset), reference_at(onset).theta, kNameMargin);
+  const ChangePoint c = fast_change(evidence, sum_since(onset), onset, block.t_end);
   if (!c.definite) {
     // Named later, from the residuals since the onset against the reference it departed from.
     naming_.active = true;

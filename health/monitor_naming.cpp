@@ -19,8 +19,10 @@ double HealthMonitor::naming_start(double onset) const {
 }
 
 // The change as the fast detector reports it: every parameter's shift alone with σ from the
-// profiled sums since the onset, and the name when it is definite.
-ChangePoint HealthMonitor::fast_change(const ChangeEvidence& since, double onset, double t) const {
+// profiled sums after the onset (from `plain`, the sums since the onset, where those have no data
+// yet: an alarm in the block after the change's), and the name when it is definite.
+ChangePoint HealthMonitor::fast_change(const ChangeEvidence& since, const ScoreBlock& plain,
+                                       double onset, double t) const {
   const Naming& name = since.name;
   ChangePoint c;
   c.detector = Detector::fast;
@@ -32,11 +34,14 @@ ChangePoint HealthMonitor::fast_change(const ChangeEvidence& since, double onset
   const Vector6 ref = reference_at(onset).theta;
   for (int i = 0; i < kParams; ++i) {
     const ProfiledSum& output = since.outputs[static_cast<std::size_t>(block_of(i))];
-    const double info = output.information(i, i);
+    const bool profiled = output.information(i, i) > 0.0;
+    const double info = profiled ? output.information(i, i) : plain.information(i, i);
+    const double score = profiled ? output.score[i] : plain.score[i];
+    if (name.best.parameter < 0) c.candidates[i] = info > 0.0;
     ParameterShift& p = c.parameters[i];
     p.tested = info > 0.0;
     if (!p.tested) continue;
-    p.delta = output.score[i] / info;
+    p.delta = score / info;
     p.sigma = 1.0 / std::sqrt(info);
     p.z = p.delta / p.sigma;
     p.relative = ref[i] != 0.0 ? p.delta / std::abs(ref[i]) : 0.0;
@@ -50,7 +55,7 @@ void HealthMonitor::name_block(const ScoreBlock& block) {
   const ChangeEvidence since = weigh_change(naming_.blocks, naming_start(naming_.change.onset),
                                             reference_at(naming_.change.onset).theta, kNameMargin);
   if (!since.name.definite) return;
-  raise_name(fast_change(since, naming_.change.onset, block.t_end));
+  raise_name(fast_change(since, ScoreBlock{}, naming_.change.onset, block.t_end));
 }
 
 // The first window after the onset against the reference the change departed from (both
