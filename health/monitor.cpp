@@ -312,13 +312,17 @@ void HealthMonitor::raise_change(const ChangePoint& change) {
   report_.has_change = true;
   report_.change = change;
   set_state(State::changed, change.detected_at);
+  push_change_event(EventKind::changed, change);
+  start_segment(change.onset, change.detected_at);
+}
+
+void HealthMonitor::push_change_event(EventKind kind, const ChangePoint& change) {
   HealthEvent e;
-  e.kind = EventKind::changed;
+  e.kind = kind;
   e.t = change.detected_at;
   e.state = report_.state;
   e.change = change;
   events_.push_back(e);
-  start_segment(change.onset, change.detected_at);
 }
 
 // A new segment: the trends and the references start again after the onset.

@@ -191,6 +191,7 @@ class HealthMonitor {
   double naming_start(double onset) const;
   bool late_drift(int parameter, double& onset);
   void raise_change(const ChangePoint& change);
+  void push_change_event(EventKind kind, const ChangePoint& change);
   void raise_drift(double t, const std::array<ParameterTrend, kParams>& trend, double onset,
                    int parameter);
   void start_segment(double onset, double t);

@@ -105,12 +105,7 @@ void HealthMonitor::name_from_window(const WindowEstimate& w) {
 void HealthMonitor::raise_name(const ChangePoint& change) {
   naming_.active = false;
   report_.change = change;
-  HealthEvent e;
-  e.kind = EventKind::named;
-  e.t = change.detected_at;
-  e.state = report_.state;
-  e.change = change;
-  events_.push_back(e);
+  push_change_event(EventKind::named, change);
   update_reference(change.detected_at);
 }
 
