@@ -191,6 +191,7 @@ class HealthMonitor {
   void name_from_window(const WindowEstimate& w);
   void raise_name(const ChangePoint& change);
   double naming_start(double onset) const;
+  NamingSettings naming_settings() const;
   bool late_drift(int parameter, double& onset);
   void raise_change(const ChangePoint& change);
   void push_change_event(EventKind kind, const ChangePoint& change);

@@ -170,8 +170,8 @@ void HealthMonitor::fast_alarm(const ScoreBlock& block) {
   }
   if (late_drift(iso.parameter, onset)) return;
   // Which parameter: from the blocks after the onset's, with the nuisance (naming.hpp).
-  const ChangeEvidence evidence =
-      weigh_change(recent_blocks_, naming_start(onset), reference_at(onset).theta, kNameMargin);
+  const ChangeEvidence evidence = weigh_change(recent_blocks_, naming_start(onset),
+                                               reference_at(onset).theta, naming_settings());
   const ChangePoint c = fast_change(evidence, sum_since(onset), onset, block.t_end);
   if (!c.definite) {
     // Named later, from the residuals since the onset against the reference it departed from.

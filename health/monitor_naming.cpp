@@ -18,6 +18,10 @@ double HealthMonitor::naming_start(double onset) const {
   return onset + 0.5 * settings_.block_s;
 }
 
+NamingSettings HealthMonitor::naming_settings() const {
+  return {kNameMargin, settings_.min_relative_change};
+}
+
 // The change as the fast detector reports it: every parameter's shift alone with σ from the
 // profiled sums after the onset (from `plain`, the sums since the onset, where those have no data
 // yet: an alarm in the block after the change's), and the name when it is definite.
@@ -52,8 +56,9 @@ ChangePoint HealthMonitor::fast_change(const ChangeEvidence& since, const ScoreB
 
 void HealthMonitor::name_block(const ScoreBlock& block) {
   naming_.blocks.push_back(block);
-  const ChangeEvidence since = weigh_change(naming_.blocks, naming_start(naming_.change.onset),
-                                            reference_at(naming_.change.onset).theta, kNameMargin);
+  const ChangeEvidence since =
+      weigh_change(naming_.blocks, naming_start(naming_.change.onset),
+                   reference_at(naming_.change.onset).theta, naming_settings());
   if (!since.name.definite) return;
   raise_name(fast_change(since, ScoreBlock{}, naming_.change.onset, block.t_end));
 }
@@ -81,7 +86,9 @@ void HealthMonitor::name_from_window(const WindowEstimate& w) {
   naming_.active = false;
   if (best < 0) return;
   const double gap = r.parameters[best].glr - (second >= 0 ? r.parameters[second].glr : 0.0);
-  if (!(gap >= kNameMargin)) return;
+  const double relative =
+      expected[best] != 0.0 ? r.parameters[best].alone / std::abs(expected[best]) : 0.0;
+  if (!(gap >= kNameMargin) || !(std::abs(relative) >= settings_.min_relative_change)) return;
   ChangePoint c = naming_.change;
   c.detector = Detector::sure;
   c.detected_at = w.t_end;

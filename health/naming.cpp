@@ -10,7 +10,7 @@ namespace {
 
 // The best and the runner-up of one block's parameters, from one output's sums.
 Naming name_in_block(const ProfiledSum& sum, int block, const Vector6& reference,
-                     double margin) noexcept {
+                     const NamingSettings& settings) noexcept {
   Naming out;
   out.block = block;
   Matrix6 information = Matrix6::Zero();
@@ -28,10 +28,10 @@ Naming name_in_block(const ProfiledSum& sum, int block, const Vector6& reference
       reference[b] != 0.0 ? out.best.delta / reference[b] : std::numeric_limits<double>::infinity();
   const double linearization = 0.25 * relative * relative * glr[b];
   const double m2 = std::max({0.0, std::isfinite(misfit) ? misfit : 0.0, linearization});
-  out.needed = std::isfinite(m2) ? std::pow(std::sqrt(m2) + std::sqrt(margin), 2)
+  out.needed = std::isfinite(m2) ? std::pow(std::sqrt(m2) + std::sqrt(settings.margin), 2)
                                  : std::numeric_limits<double>::infinity();
   out.gap = out.runner_up >= 0 ? glr[b] - glr[out.runner_up] : glr[b];
-  out.definite = out.gap >= out.needed;
+  out.definite = out.gap >= out.needed && std::abs(relative) >= settings.min_relative;
   for (int i = kBlockFirst[block]; i < kBlockEnd[block]; ++i)
     out.candidates[i] = information(i, i) > 0.0 && glr[b] - glr[i] < out.needed;
   return out;
@@ -40,17 +40,20 @@ Naming name_in_block(const ProfiledSum& sum, int block, const Vector6& reference
 }  // namespace
 
 Naming name_change(const ProfiledSum& x, const ProfiledSum& tbar, const Vector6& reference,
-                   double margin) noexcept {
-  // The thermal block moved when T̄'s best explanation stands out of T̄'s noise and misfit alike.
-  const Naming thermal = name_in_block(tbar, 1, reference, margin);
+                   const NamingSettings& settings) noexcept {
+  // The thermal block moved when T̄'s best explanation stands out of T̄'s noise and misfit alike,
+  // by a change that matters.
+  const Naming thermal = name_in_block(tbar, 1, reference, settings);
   const int t = thermal.best.parameter;
-  if (t >= 0 && thermal.best.glr[t] >= thermal.needed) return thermal;
+  if (t >= 0 && thermal.best.glr[t] >= thermal.needed &&
+      std::abs(thermal.best.delta) >= settings.min_relative * std::abs(reference[t]))
+    return thermal;
   // The mechanical block is never named from the residuals: x's static gain is α2/k and its time
   // constant b/k whichever of θ1..θ4 moved, so their linearized responses differ by about as much
   // as a 10 % change's second-order term, which then decides (a k/m step named a2/m or b/m with
   // the wrong sign on simulated data, tests/health/test_naming.cpp). The refined window after
   // the onset names it (a nonlinear fit of every θ; HealthMonitor::name_from_window).
-  Naming mechanical = name_in_block(x, 0, reference, margin);
+  Naming mechanical = name_in_block(x, 0, reference, settings);
   mechanical.definite = false;
   for (int i = kBlockFirst[0]; i < kBlockEnd[0]; ++i)
     mechanical.candidates[i] = x.information(i, i) > 0.0;
@@ -58,11 +61,11 @@ Naming name_change(const ProfiledSum& x, const ProfiledSum& tbar, const Vector6&
 }
 
 ChangeEvidence weigh_change(std::span<const ScoreBlock> blocks, double from,
-                            const Vector6& reference, double margin) {
+                            const Vector6& reference, const NamingSettings& settings) {
   ChangeEvidence e;
   for (int k = 0; k < 2; ++k)
     e.outputs[static_cast<std::size_t>(k)] = profile_nuisance(blocks, from, k);
-  e.name = name_change(e.outputs[0], e.outputs[1], reference, margin);
+  e.name = name_change(e.outputs[0], e.outputs[1], reference, settings);
   return e;
 }
 

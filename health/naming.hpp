@@ -38,9 +38,15 @@ struct Naming {
 };
 
 // `x` and `tbar`: each output's sums since the onset (profile_nuisance's output 0 and 1);
-// `reference`: the θ the residuals are against (for the relative size of a change).
+// `reference`: the θ the residuals are against. A change below `min_relative` of |θ_i| is never
+// named, nor makes its block the one that moved: at N1's 1e-3 °C a thermal reference error of
+// 1e-5 relative becomes significant in T̄ within a minute (HealthSettings::min_relative_change).
+struct NamingSettings {
+  double margin = kNameMargin;
+  double min_relative = 0.0;
+};
 Naming name_change(const ProfiledSum& x, const ProfiledSum& tbar, const Vector6& reference,
-                   double margin) noexcept;
+                   const NamingSettings& settings) noexcept;
 
 // The blocks from `from` on: each output's profiled sums and the name they give. Parameter i's
 // change alone is outputs[block_of(i)]'s s̃_i/Ĩ_ii with σ 1/√Ĩ_ii.
@@ -49,6 +55,6 @@ struct ChangeEvidence {
   Naming name;
 };
 ChangeEvidence weigh_change(std::span<const ScoreBlock> blocks, double from,
-                            const Vector6& reference, double margin);
+                            const Vector6& reference, const NamingSettings& settings);
 
 }  // namespace scp::health

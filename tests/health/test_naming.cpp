@@ -23,7 +23,8 @@ constexpr double kDt = 1e-3;                      // s, the loop period
 constexpr int kPlantSubsteps = 4;                 // the plant's RK4 steps per period
 constexpr double kNoiseX = 1e-7, kNoiseT = 1e-3;  // N1: m, °C
 constexpr long kSeedSamples = 30000;              // the refit interval, 30 s
-constexpr double kMargin = 10.83;                 // χ²₁ at 0.999, as the monitor names
+// As the monitor names at the default settings.
+constexpr NamingSettings kNaming{kNameMargin, 0.02};
 
 // The reference model's state and ∂[x, ẋ, T̄]/∂[θ1..θ6, x0, ẋ0, T̄0] (column-major 3×9).
 constexpr int kSens = 9;
@@ -134,7 +135,7 @@ FirstName first_definite(const std::vector<ScoreBlock>& blocks, double at) {
   for (const auto& b : blocks) {
     if (b.t_begin < onset) continue;
     since.push_back(b);
-    const Naming name = weigh_change(since, onset + 0.5, test::paper_theta(), kMargin).name;
+    const Naming name = weigh_change(since, onset + 0.5, test::paper_theta(), kNaming).name;
     if (name.definite) return {name, b.t_end};
   }
   return {};
@@ -176,7 +177,7 @@ void expect_mechanical_set(const Step& step, const char* what) {
     double onset = 0.0;
     for (const auto& b : blocks)
       if (b.t_begin <= at) onset = b.t_begin;
-    const Naming name = weigh_change(blocks, onset + 0.5, test::paper_theta(), kMargin).name;
+    const Naming name = weigh_change(blocks, onset + 0.5, test::paper_theta(), kNaming).name;
     EXPECT_EQ(name.block, 0) << what << " seed " << seed;
     for (int i = 0; i < kParams; ++i)
       EXPECT_EQ(name.candidates[i], block_of(i) == 0) << what << " seed " << seed << " θ" << i + 1;
