@@ -205,15 +205,24 @@ void step_section(bool quick) {
         return th;
       };
       const auto r = test::run_monitor(HealthSettings{}, theta, o);
-      bool first = true;
+      bool first = true, name_seen = false;
       for (const auto& e : r.events) {
+        // The first definite name: the change's own, or the `named` event that follows it.
+        if (e.kind == EventKind::named && !first && !name_seen) {
+          name_seen = true;
+          named += e.change.parameter == c.parameter ? 1 : 0;
+          continue;
+        }
         if (e.kind != EventKind::changed || e.change.detected_at < at || !first) {
           ++other;
           continue;
         }
         first = false;
         ++detected;
-        named += e.change.parameter == c.parameter ? 1 : 0;
+        if (e.change.definite) {
+          name_seen = true;
+          named += e.change.parameter == c.parameter ? 1 : 0;
+        }
         delays.push_back(e.change.detected_at - at);
         onset_errors.push_back(std::abs(e.change.onset - at));
       }

@@ -80,6 +80,8 @@ const char* event_name(EventKind kind) noexcept {
       return "drift";
     case EventKind::acknowledged:
       return "acknowledged";
+    case EventKind::named:
+      return "named";
     case EventKind::changed:
       break;
   }
@@ -157,6 +159,7 @@ void HealthMonitor::add_window(const WindowEstimate& w) {
   baseline_th.min_relative_change = settings_.min_relative_change;
   report_.baseline_deviation =
       wald_test(w.theta, w.covariance, baseline_.theta, baseline_.covariance, baseline_th);
+  if (naming_.active && w.t_begin >= naming_.change.onset) name_from_window(w);
   if (w.t_begin >= segment_start_) test_against_reference(w);
   tested_against_baseline_ = true;
   // A window that straddles a change (the one just found or an earlier one) leaves the trends.
@@ -309,13 +312,17 @@ void HealthMonitor::raise_change(const ChangePoint& change) {
   report_.has_change = true;
   report_.change = change;
   set_state(State::changed, change.detected_at);
+  push_change_event(EventKind::changed, change);
+  start_segment(change.onset, change.detected_at);
+}
+
+void HealthMonitor::push_change_event(EventKind kind, const ChangePoint& change) {
   HealthEvent e;
-  e.kind = EventKind::changed;
+  e.kind = kind;
   e.t = change.detected_at;
   e.state = report_.state;
   e.change = change;
   events_.push_back(e);
-  start_segment(change.onset, change.detected_at);
 }
 
 // A new segment: the trends and the references start again after the onset.

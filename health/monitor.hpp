@@ -6,7 +6,9 @@
 // Three detectors share one false-alarm budget (HealthSettings::false_alarm_days, a third each):
 // - fast: a two-sided CUSUM per parameter on the residuals' efficient scores (score_blocks.hpp),
 //   thresholds from Siegmund's ARL (cusum.hpp); at an alarm its change-point estimate is the
-//   onset and the single-parameter GLR since then names the parameter (isolate()).
+//   onset, and the parameter is named once the residuals after it separate it from the other
+//   candidates (naming.hpp) or the first window after the onset does (an event `named`);
+//   until then the change carries its candidates.
 // - sure: each refined window against the reference, a Wald χ² per block and a z per parameter
 //   (wald.hpp), thresholds from the crossing rate of the overlapping windows' χ² process
 //   (scan_threshold.hpp).
@@ -39,6 +41,7 @@
 
 #include "health/cusum.hpp"
 #include "health/indicators.hpp"
+#include "health/naming.hpp"
 #include "health/score_blocks.hpp"
 #include "health/settings.hpp"
 #include "health/trend.hpp"
@@ -70,7 +73,12 @@ struct ChangePoint {
   double onset = 0.0;        // s, loop time
   double detected_at = 0.0;  // s
   Detector detector = Detector::none;
-  int parameter = -1;  // named first
+  int parameter = -1;  // named first; -1 while the data do not yet separate the candidates
+  // The fast detector names a parameter only when the residuals since the onset separate it from
+  // every other (naming.hpp); until then `parameter` is -1 and `candidates` is the set that
+  // explains them alike, and an event `named` follows when the data decide.
+  bool definite = true;
+  ParameterMask candidates{};
   std::array<ParameterShift, kParams> parameters{};
 };
 
@@ -98,14 +106,16 @@ struct FastReport {
   std::uint64_t blocks = 0;
 };
 
-enum class EventKind : std::uint8_t { changed, drift, acknowledged };
+// `named`: the parameter of a change raised without one (ChangePoint::definite false), once the
+// data since its onset separate it from the other candidates.
+enum class EventKind : std::uint8_t { changed, drift, acknowledged, named };
 const char* event_name(EventKind kind) noexcept;
 
 struct HealthEvent {
   EventKind kind = EventKind::changed;
   double t = 0.0;                               // loop time it was raised
   State state = State::ok;                      // the state after it
-  ChangePoint change;                           // kind == changed
+  ChangePoint change;                           // kind == changed or named
   std::array<ParameterTrend, kParams> trend{};  // kind == drift
 };
 
@@ -113,7 +123,7 @@ struct HealthReport {
   State state = State::ok;
   double since = 0.0;  // loop time the state was entered (0: since the monitor started)
   bool has_change = false;
-  ChangePoint change;  // the latest change point
+  ChangePoint change;  // the latest change point (its name once `named`)
   // The latest window against the baseline (published, never an alarm by itself) and against
   // the trend reference (the sure detector).
   bool has_window = false;
@@ -145,6 +155,11 @@ class HealthMonitor {
   Reference reference_at(double t) const;
   // One sample of residuals against reference_at()'s θ: r = ε/σ per output, J = ∂(y/σ)/∂θ.
   void add_sample(double t, const Vector2& residual, const Matrix26& sensitivity);
+  // The same with the nuisance's sensitivities N = ∂(y/σ)/∂[x0, ẋ0, T̄0, x offset, T̄ offset] of
+  // the residual simulation seeded as `segment` (score_blocks.hpp): a caller that re-seeds its
+  // simulator passes a new segment, and the naming of a change profiles each one's out.
+  void add_sample(double t, const Vector2& residual, const Matrix26& sensitivity,
+                  const Matrix2N& nuisance, std::uint64_t segment);
   // Or whole blocks, when the caller sums them itself.
   void add_block(const ScoreBlock& block);
 
@@ -170,8 +185,16 @@ class HealthMonitor {
   void update_reference(double t);
   void design_cusums();
   void fast_alarm(const ScoreBlock& block);
+  ChangePoint fast_change(const ChangeEvidence& since, const ScoreBlock& plain, double onset,
+                          double t) const;
+  void name_block(const ScoreBlock& block);
+  void name_from_window(const WindowEstimate& w);
+  void raise_name(const ChangePoint& change);
+  double naming_start(double onset) const;
+  NamingSettings naming_settings() const;
   bool late_drift(int parameter, double& onset);
   void raise_change(const ChangePoint& change);
+  void push_change_event(EventKind kind, const ChangePoint& change);
   void raise_drift(double t, const std::array<ParameterTrend, kParams>& trend, double onset,
                    int parameter);
   void start_segment(double onset, double t);
@@ -203,6 +226,17 @@ class HealthMonitor {
     Matrix6 reference_covariance = Matrix6::Zero();
   };
   PendingChange pending_;
+
+  // A fast alarm raised without a name: the residuals go on against the reference it departed
+  // from (frozen) until they name the parameter or a window after the onset gives the new
+  // reference (monitor_naming.cpp).
+  struct PendingName {
+    bool active = false;
+    ChangePoint change;
+    TrendFit reference;
+    std::vector<ScoreBlock> blocks;  // since the onset
+  };
+  PendingName naming_;
 
   Reference reference_;
   TrendFit reference_fit_;  // reference_at() extrapolates its slope

@@ -39,6 +39,12 @@ void HealthMonitor::update_reference(double t) {
   if (!p.valid || p.fit.windows < 2) p = predict(t, t);
   if (history_.empty()) p.valid = false;
   ++reference_.generation;
+  // A change still being named keeps the reference it departed from until the new one exists.
+  if (p.valid) naming_.active = false;
+  if (!p.valid && naming_.active) {
+    p.valid = true;
+    p.fit = naming_.reference;
+  }
   reference_.valid = p.valid;
   reference_fit_ = p.fit;
   if (!p.valid) return;
@@ -69,14 +75,23 @@ void HealthMonitor::design_cusums() {
 }
 
 void HealthMonitor::add_sample(double t, const Vector2& residual, const Matrix26& sensitivity) {
+  add_sample(t, residual, sensitivity, Matrix2N::Zero(), 0);
+}
+
+void HealthMonitor::add_sample(double t, const Vector2& residual, const Matrix26& sensitivity,
+                               const Matrix2N& nuisance, std::uint64_t segment) {
   if (!reference_.valid) return;
-  if (accumulator_.add(t, residual, sensitivity)) add_block(accumulator_.last());
+  if (accumulator_.add(t, residual, sensitivity, nuisance, segment)) add_block(accumulator_.last());
 }
 
 void HealthMonitor::add_block(const ScoreBlock& block) {
   if (!reference_.valid || block.samples == 0 || !block.score.allFinite() ||
       !block.information.allFinite())
     return;
+  if (naming_.active) {
+    name_block(block);
+    return;
+  }
   recent_blocks_.push_back(block);
   const double oldest = block.t_end - kRecentBlocksSeconds;
   std::erase_if(recent_blocks_, [oldest](const ScoreBlock& b) { return b.t_end < oldest; });
@@ -143,8 +158,10 @@ void HealthMonitor::fast_alarm(const ScoreBlock& block) {
       if (b.t_begin >= from) sum.add(b);
     return sum;
   };
-  ScoreBlock since = sum_since(onset);
-  Isolation iso = isolate(since.score, since.information);
+  // Whether the change matters and whether it is a step: from the plain sums since the onset
+  // (every block, the one the change began in too), as the CUSUMs see them.
+  const ScoreBlock since = sum_since(onset);
+  const Isolation iso = isolate(since.score, since.information);
   const double theta = std::abs(reference_at(onset).theta[std::max(iso.parameter, 0)]);
   if (iso.parameter < 0 || !(std::abs(iso.delta) >= settings_.min_relative_change * theta)) {
     ++report_.dismissed;
@@ -152,27 +169,18 @@ void HealthMonitor::fast_alarm(const ScoreBlock& block) {
     return;
   }
   if (late_drift(iso.parameter, onset)) return;
-  if (onset != cusums_[channel].onset()) {
-    since = sum_since(onset);
-    const Isolation from_step = isolate(since.score, since.information);
-    if (from_step.parameter >= 0) iso = from_step;
-  }
-  ChangePoint c;
-  c.detector = Detector::fast;
-  c.onset = onset;
-  c.detected_at = block.t_end;
-  c.parameter = iso.parameter;
-  const Vector6 ref = reference_at(onset).theta;
-  for (int i = 0; i < kParams; ++i) {
-    const double info = since.information(i, i);
-    ParameterShift& p = c.parameters[i];
-    p.tested = info > 0.0;
-    if (!p.tested) continue;
-    p.delta = since.score[i] / info;
-    p.sigma = 1.0 / std::sqrt(info);
-    p.z = p.delta / p.sigma;
-    p.relative = ref[i] != 0.0 ? p.delta / std::abs(ref[i]) : 0.0;
-    p.moved = i == iso.parameter;
+  // Which parameter: from the blocks after the onset's, with the nuisance (naming.hpp).
+  const ChangeEvidence evidence = weigh_change(recent_blocks_, naming_start(onset),
+                                               reference_at(onset).theta, naming_settings());
+  const ChangePoint c = fast_change(evidence, sum_since(onset), onset, block.t_end);
+  if (!c.definite) {
+    // Named later, from the residuals since the onset against the reference it departed from.
+    naming_.active = true;
+    naming_.change = c;
+    naming_.reference = reference_fit_;
+    naming_.blocks.clear();
+    for (const auto& b : recent_blocks_)
+      if (b.t_begin >= onset) naming_.blocks.push_back(b);
   }
   raise_change(c);
 }

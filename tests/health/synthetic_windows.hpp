@@ -106,6 +106,8 @@ inline WindowEstimate baseline_window(const Vector6& theta, const Matrix6& windo
 
 class ScoreStream {
  public:
+  static constexpr std::uint32_t kSamplesPerBlock = 1000;  // 1 kHz over 1 s
+
   ScoreStream(const Matrix6& information, std::uint64_t seed)
       : information_(information), chol_(information.llt().matrixL()), rng_(seed) {}
 
@@ -115,9 +117,21 @@ class ScoreStream {
     ScoreBlock b;
     b.t_begin = t_begin;
     b.t_end = t_end;
-    b.samples = 1;
+    b.samples = kSamplesPerBlock;
     b.information = information_;
     b.score = information_ * (theta - reference) + chol_ * n;
+    // Each output's share: x sees θ1..θ4 and T̄ sees θ5, θ6 (the covariance has no cross terms
+    // between the blocks), no nuisance; the residuals' squares are the part the six θ explain
+    // plus the noise of the samples' other dimensions.
+    for (int k = 0; k < kBlocks; ++k) {
+      OutputSums& o = b.outputs[static_cast<std::size_t>(k)];
+      const int first = kBlockFirst[k], size = kBlockEnd[k] - kBlockFirst[k];
+      o.score.segment(first, size) = b.score.segment(first, size);
+      o.information.block(first, first, size, size) = information_.block(first, first, size, size);
+      const Eigen::VectorXd s = o.score.segment(first, size);
+      const Eigen::MatrixXd i = o.information.block(first, first, size, size);
+      o.residual_square = s.dot(i.ldlt().solve(s)) + (kSamplesPerBlock - size);
+    }
     return b;
   }
 

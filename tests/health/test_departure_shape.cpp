@@ -6,11 +6,11 @@
 
 #include <cmath>
 #include <functional>
-#include <numbers>
 #include <random>
 #include <vector>
 
 #include "health/departure_shape.hpp"
+#include "tests/health/paper_plant.hpp"
 #include "tests/health/synthetic_windows.hpp"
 
 namespace scp::health {
@@ -19,13 +19,6 @@ namespace {
 constexpr double kDt = 1e-3;         // s, the loop period
 constexpr double kNoiseX = 1e-7;     // m, N1
 constexpr int kBlockSamples = 1000;  // 1 s blocks
-
-double paper_voltage(double t) {
-  constexpr double w1 = 2.0 * std::numbers::pi * 0.006, w2 = 2.0 * std::numbers::pi * 0.1;
-  constexpr double h = std::numbers::pi / 2.0;
-  return 1.6 +
-         0.4 * (std::sin(w1 * t - h) + std::sin(w1 * t) + std::sin(w2 * t) + std::sin(w2 * t - h));
-}
 
 // States [x, ẋ, T̄] of eqs. (1)-(2) in θ form, and for the reference also [S, Ṡ] = ∂[x, ẋ]/∂θ1.
 using State = std::array<double, 5>;
@@ -38,7 +31,7 @@ State derivative(const State& s, const Vector6& th, double v) {
 
 void rk4(State& s, const Vector6& th, double t) {
   // The voltage is held over the step (a DAC), as the loop commands it.
-  const double v = paper_voltage(t);
+  const double v = test::paper_voltage(t);
   const auto add = [](const State& a, const State& d, double h) {
     State r;
     for (std::size_t i = 0; i < a.size(); ++i) r[i] = a[i] + h * d[i];

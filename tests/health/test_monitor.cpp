@@ -54,7 +54,18 @@ TEST(HealthMonitor, FalseAlarmsFollowTheDesignedInterval) {
   EXPECT_LE(alarms, 21);
 }
 
+// The change of the first event that names a parameter definitely (ChangePoint::definite).
+const ChangePoint* first_name(const std::vector<HealthEvent>& events) {
+  for (const auto& e : events)
+    if ((e.kind == EventKind::changed || e.kind == EventKind::named) && e.change.definite &&
+        e.change.parameter >= 0)
+      return &e.change;
+  return nullptr;
+}
+
 TEST(HealthMonitor, AThermalStepIsChangedWithItsOnsetAndParameter) {
+  // λ/Cth +10 %: the alarm may come in the block after the step's, before any block after the
+  // onset's to name it from; the name then follows within a block or two.
   const double at = 1803.7;
   test::RunOptions o;
   o.duration_s = 3600.0;
@@ -63,16 +74,24 @@ TEST(HealthMonitor, AThermalStepIsChangedWithItsOnsetAndParameter) {
   ASSERT_EQ(r.drifts(), 0);
   const ChangePoint& c = r.events.front().change;
   EXPECT_EQ(c.detector, Detector::fast);
-  EXPECT_EQ(c.parameter, 4);
+  EXPECT_TRUE(c.parameter == 4 || (!c.definite && c.candidates[4])) << c.parameter;
   EXPECT_NEAR(c.onset, at, 1.5);
   EXPECT_LT(c.detected_at - at, 3.0);
-  EXPECT_NEAR(c.parameters[4].relative, 0.10, 0.01);
+  const ChangePoint* named = first_name(r.events);
+  ASSERT_NE(named, nullptr);
+  EXPECT_EQ(named->detector, Detector::fast);
+  EXPECT_EQ(named->parameter, 4);
+  EXPECT_LT(named->detected_at - at, 3.0);
+  EXPECT_NEAR(named->parameters[4].relative, 0.10, 0.01);
+  EXPECT_EQ(r.report.change.parameter, 4);
   EXPECT_EQ(r.report.state, State::changed);
 }
 
 TEST(HealthMonitor, ADampingStepIsFoundFastAndNamed) {
-  // b/m +10 % (the first case): θ1..θ4 are strongly correlated, yet the single-parameter
-  // GLR of the residual scores names b/m.
+  // b/m +10 % (the first case): found by the fast detector, which names the mechanical
+  // block only as its set of candidates (naming.hpp: on a real plant their linearized responses
+  // differ by about the change's second-order term); the first window after the onset names b/m,
+  // θ1..θ4 strongly correlated as they are, by the single-parameter GLR of its departure.
   const double at = 2400.3;
   test::RunOptions o;
   o.duration_s = 3000.0;
@@ -80,15 +99,45 @@ TEST(HealthMonitor, ADampingStepIsFoundFastAndNamed) {
     o.seed = seed;
     const auto r = test::run_monitor(HealthSettings{}, step(0, 0.10, at), o);
     ASSERT_EQ(r.changes(), 1) << seed;
+    ASSERT_EQ(r.events.size(), 2u) << seed;
     const ChangePoint& c = r.events.front().change;
     EXPECT_EQ(c.detector, Detector::fast);
-    EXPECT_EQ(c.parameter, 0);
+    EXPECT_EQ(c.parameter, -1);
+    EXPECT_FALSE(c.definite);
+    for (int i = 0; i < kParams; ++i) EXPECT_EQ(c.candidates[i], block_of(i) == 0) << i;
     EXPECT_NEAR(c.onset, at, 1.5);
     // The design delay for 10 % of b/m is ~5 blocks here (k capped at 1, h ≈ 9): the synthetic
     // information of θ1 alone is ~3σ per 1 s block.
     EXPECT_LT(c.detected_at - at, 2.0 * r.report.fast.design_delay_s[0] + 1.0);
-    EXPECT_NEAR(c.parameters[0].relative, 0.10, 0.02);
+    const HealthEvent& named = r.events.back();
+    EXPECT_EQ(named.kind, EventKind::named);
+    EXPECT_EQ(named.change.detector, Detector::sure);
+    EXPECT_EQ(named.change.parameter, 0);
+    EXPECT_NEAR(named.change.onset, c.onset, 1e-9);
+    // One window length after the onset, the next refit at most.
+    EXPECT_GE(named.t, c.onset + o.window_s);
+    EXPECT_LE(named.t, c.onset + o.window_s + o.chunk_s + 1.0);
+    EXPECT_NEAR(named.change.parameters[0].relative, 0.10, 0.02);
+    EXPECT_EQ(r.report.change.parameter, 0);
+    EXPECT_EQ(r.report.state, State::changed);
   }
+}
+
+TEST(HealthMonitor, AHeatingStepIsNamedByTheFastDetector) {
+  // R +10 %: T̄ alone tells θ6 from θ5, within a block or two on these linear blocks; no name
+  // before that one, and no other event.
+  const double at = 1900.6;
+  test::RunOptions o;
+  o.duration_s = 2400.0;
+  const auto r = test::run_monitor(HealthSettings{}, step(5, 1.0 / 1.1 - 1.0, at), o);
+  ASSERT_EQ(r.changes(), 1);
+  ASSERT_LE(r.events.size(), 2u);
+  const ChangePoint* named = first_name(r.events);
+  ASSERT_NE(named, nullptr);
+  EXPECT_EQ(named->detector, Detector::fast);
+  EXPECT_EQ(named->parameter, 5);
+  EXPECT_LT(named->detected_at - at, 3.0);
+  EXPECT_NEAR(named->parameters[5].relative, 1.0 / 1.1 - 1.0, 0.01);
 }
 
 TEST(HealthMonitor, TheSureDetectorAloneFindsAMechanicalStep) {

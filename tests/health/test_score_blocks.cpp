@@ -56,5 +56,47 @@ TEST(ScoreBlocks, IsolationNamesTheParameterThatMoved) {
   EXPECT_GE(named, 95);
 }
 
+TEST(ScoreBlocks, ASegmentChangeEndsTheOpenBlock) {
+  BlockAccumulator acc(1.0);
+  const Matrix26 j = Matrix26::Ones();
+  for (int k = 1; k <= 400; ++k) EXPECT_FALSE(acc.add(k * 1e-3, Vector2(1.0, 1.0), j, {}, 7));
+  EXPECT_TRUE(acc.add(0.401, Vector2(1.0, 1.0), j, {}, 8));
+  EXPECT_EQ(acc.last().samples, 400u);
+  EXPECT_EQ(acc.last().segment, 7u);
+}
+
+TEST(ScoreBlocks, ProfilingRemovesEachSegmentsNuisance) {
+  // r = J_3·∆ + N·c_segment exactly, with random sensitivities and a different nuisance c in
+  // each of two segments: profiled, θ3's change alone explains everything, ∆ exactly, and the
+  // residual sum left is Λ_3's.
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> normal;
+  const double delta = 0.3;
+  std::vector<ScoreBlock> blocks;
+  BlockAccumulator acc(0.1);
+  for (int k = 1; k <= 2000; ++k) {
+    const std::uint64_t segment = k <= 1000 ? 1 : 2;
+    NuisanceVector c;
+    for (int m = 0; m < kNuisance; ++m) c[m] = segment == 1 ? 0.5 * m - 1.0 : 2.0 - m;
+    Matrix26 j;
+    Matrix2N n;
+    for (int r = 0; r < 2; ++r) {
+      for (int i = 0; i < kParams; ++i) j(r, i) = normal(rng);
+      for (int m = 0; m < kNuisance; ++m) n(r, m) = normal(rng);
+    }
+    const Vector2 residual = j.col(2) * delta + n * c;
+    if (acc.add(k * 1e-3, residual, j, n, segment)) blocks.push_back(acc.last());
+  }
+  const ProfiledSum x = profile_nuisance(blocks, 0.0, 0);
+  const Isolation iso = isolate(x.score, x.information);
+  EXPECT_EQ(iso.parameter, 2);
+  EXPECT_NEAR(iso.delta, delta, 1e-9);
+  EXPECT_NEAR(x.residual_square, iso.glr[2], 1e-6 * iso.glr[2]);
+  // Unprofiled, the nuisance biases the change.
+  ScoreBlock plain;
+  for (const auto& b : blocks) plain.add(b);
+  EXPECT_GT(std::abs(plain.outputs[0].score[2] / plain.outputs[0].information(2, 2) - delta), 0.01);
+}
+
 }  // namespace
 }  // namespace scp::health

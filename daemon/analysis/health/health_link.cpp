@@ -23,7 +23,13 @@ std::string describe_change(const scp::health::ChangePoint& c) {
   std::snprintf(head, sizeof(head), "(onset %.1f s, %s detector)", c.onset,
                 scp::health::detector_name(c.detector));
   std::string text = head;
-  if (c.parameter < 0) return text;
+  if (c.parameter < 0) {
+    // Not yet named: the parameters the data do not yet tell apart (an event `named` follows).
+    std::string set;
+    for (std::size_t i = 0; i < c.candidates.size(); ++i)
+      if (c.candidates[i]) set += (set.empty() ? "" : ", ") + std::string(kParameterNames[i]);
+    return set.empty() ? text : text + ": one of " + set;
+  }
   const scp::health::ParameterShift& p = c.parameters[static_cast<std::size_t>(c.parameter)];
   const double reference = p.relative != 0.0 ? p.delta / p.relative : 0.0;
   const double relative_sigma = reference != 0.0 ? p.sigma / std::abs(reference) : 0.0;
@@ -59,6 +65,7 @@ std::string describe(const scp::health::HealthEvent& event) {
   std::snprintf(head, sizeof(head), "%s at %.1f s", scp::health::event_name(event.kind), event.t);
   switch (event.kind) {
     case EventKind::changed:
+    case EventKind::named:
       return head + std::string(" ") + describe_change(event.change);
     case EventKind::drift:
       return head + describe_drift(event.trend);

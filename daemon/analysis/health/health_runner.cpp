@@ -11,6 +11,7 @@ namespace {
 
 using scp::health::HealthMonitor;
 using scp::health::Matrix26;
+using scp::health::Matrix2N;
 using scp::health::Vector2;
 using scp::refine::Verdict;
 
@@ -83,6 +84,7 @@ void HealthRunner::feed(const scp::refine::WindowSample& sample) {
     const scp::refine::ModelState s = simulator_->state();
     simulator_.emplace(reference.theta, scp::refine::InitialState(s.x, s.xdot, s.tbar));
     generation_ = reference.generation;
+    ++segment_;
   }
   simulator_->advance(last_sample_, sample, input_delay_);
   last_sample_ = sample;
@@ -94,11 +96,19 @@ void HealthRunner::feed(const scp::refine::WindowSample& sample) {
   Matrix26 sensitivity;
   sensitivity.row(0) = simulator_->dx().head<6>().transpose() * inverse_sigma_[0];
   sensitivity.row(1) = simulator_->dtbar().head<6>().transpose() * inverse_sigma_[1];
-  if (!residual.allFinite() || !sensitivity.allFinite()) {
+  // The nuisance: the state at the seed (the simulator's last three parameters) and the offsets.
+  Matrix2N nuisance = Matrix2N::Zero();
+  nuisance.row(0).head<3>() =
+      simulator_->dx().segment<3>(scp::refine::kX0).transpose() * inverse_sigma_[0];
+  nuisance.row(1).head<3>() =
+      simulator_->dtbar().segment<3>(scp::refine::kX0).transpose() * inverse_sigma_[1];
+  nuisance(0, 3) = inverse_sigma_[0];
+  nuisance(1, 4) = inverse_sigma_[1];
+  if (!residual.allFinite() || !sensitivity.allFinite() || !nuisance.allFinite()) {
     simulator_.reset();  // diverged: wait for the next fit
     return;
   }
-  monitor_->add_sample(sample.t, residual, sensitivity);
+  monitor_->add_sample(sample.t, residual, sensitivity, nuisance, segment_);
   ++view_.residual_samples;
 }
 
@@ -161,6 +171,7 @@ void HealthRunner::seed(const scp::refine::FitResult& fit,
   simulator_.emplace(reference.theta, scp::refine::InitialState(state.x, state.xdot, state.tbar),
                      false, scp::refine::tempcos_of(fit.extensions));
   generation_ = reference.generation;
+  ++segment_;
   last_sample_ = window.back();
   input_delay_ = fit.input_delay_s;
   x_zero_ = fit.nuisance.x_zero.value;

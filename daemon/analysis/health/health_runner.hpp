@@ -63,6 +63,7 @@ class HealthRunner final : public refine::FitObserver {
   std::optional<scp::refine::SensitivitySimulator> simulator_;
   scp::refine::WindowSample last_sample_{};
   std::uint64_t generation_ = 0;
+  std::uint64_t segment_ = 0;  // counts the simulator's seeds (the monitor's nuisance segments)
   double input_delay_ = 0.0;
   // The fit's nuisance terms (refine/fit_terms.hpp): the model's outputs plus x_zero, and
   // ambient_offset + ambient_drift·(t − t0) with t0 its window's first sample.
