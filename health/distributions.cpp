@@ -43,10 +43,21 @@ double normal_upper_quantile(double probability) noexcept {
   return invert_decreasing([](double z) { return normal_upper_tail(z); }, probability, 0.0, 8.0);
 }
 
+namespace {
+
+// ln Γ(x) without std::lgamma's write to glibc's global `signgam` (the monitor runs on the loop's
+// thread while an offline replay's fits run on others; refine/probability.cpp does the same).
+double log_gamma(double x) noexcept {
+  int sign = 0;
+  return ::lgamma_r(x, &sign);
+}
+
+}  // namespace
+
 double chi_square_density(double x, int dof) noexcept {
   if (!(x > 0.0) || dof < 1) return 0.0;
   const double k = 0.5 * dof;
-  return std::exp((k - 1.0) * std::log(x) - 0.5 * x - k * std::numbers::ln2 - std::lgamma(k));
+  return std::exp((k - 1.0) * std::log(x) - 0.5 * x - k * std::numbers::ln2 - log_gamma(k));
 }
 
 double chi_square_upper_tail(double x, int dof) noexcept {
