@@ -57,20 +57,45 @@ double thermal_residual(std::span<const WindowSample> window, const Vector6& the
   return state.noise.tbar;
 }
 
+// Schwarz's criterion of that fit on T̄ alone: n·ln σ̂² + k·ln n, k its free slots.
+double thermal_criterion(std::span<const WindowSample> window, const Vector6& theta_start,
+                         const FitSettings& settings) {
+  const double variance = thermal_residual(window, theta_start, settings);
+  if (!std::isfinite(variance) || !(variance > 0.0)) return std::numeric_limits<double>::infinity();
+  int k = 0;
+  for (const bool f : thermal_slots(settings)) k += f ? 1 : 0;
+  const double n = static_cast<double>(window.size());
+  return n * std::log(variance) + k * std::log(n);
+}
+
 }  // namespace
 
 VoltageInterval choose_voltage_interval(std::span<const WindowSample> window,
                                         const Vector6& theta_start, const FitSettings& settings) {
+  // A one-period shift of the voltage and a first-order lag of the sensor look alike in T̄ (to
+  // O(Δ·τs·T̄'')): with the lag free, `after` with a lag of minus one period fits a record logged
+  // `before` about as well, and `before` with a lag of one period one logged `after`. So an
+  // estimated lag is also tried held at 0, and the criterion, which charges the lag its
+  // parameter, prefers the interval that needs none; a real lag (tenths of a second) leaves both
+  // held fits far behind and the free ones apart by its larger second-order term.
+  FitSettings held = settings;
+  if (!held.nuisance.sensor_lag.fixed) held.nuisance.sensor_lag = {.fixed = true, .value = 0.0};
   std::vector<WindowSample> storage;
-  const double before =
-      thermal_residual(prepare_window(window, settings.voltage_hold, VoltageInterval::before,
-                                      storage, settings.voltage_shape),
-                       theta_start, settings);
-  const double after =
-      thermal_residual(prepare_window(window, settings.voltage_hold, VoltageInterval::after,
-                                      storage, settings.voltage_shape),
-                       theta_start, settings);
-  return after < before ? VoltageInterval::after : VoltageInterval::before;
+  double best = std::numeric_limits<double>::infinity();
+  VoltageInterval chosen = VoltageInterval::before;
+  for (const VoltageInterval interval : {VoltageInterval::before, VoltageInterval::after}) {
+    const std::span<const WindowSample> prepared =
+        prepare_window(window, settings.voltage_hold, interval, storage, settings.voltage_shape);
+    for (const FitSettings* s : {static_cast<const FitSettings*>(&held), &settings}) {
+      if (s == &settings && settings.nuisance.sensor_lag.fixed) continue;  // tried as `held`
+      const double score = thermal_criterion(prepared, theta_start, *s);
+      if (score < best) {
+        best = score;
+        chosen = interval;
+      }
+    }
+  }
+  return chosen;
 }
 
 }  // namespace scp::refine

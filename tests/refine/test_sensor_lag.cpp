@@ -47,8 +47,8 @@ TEST(SensorLag, TheLaggedModelFollowsASensorIntegratedWithThePlant) {
     e_without = std::max(e_without, std::abs(without[k] - w[k].tbar));
     top = std::max(top, std::abs(w[k].tbar));
   }
-  std::printf("max |reading − RK4 sensor| / max T̄: with the lag %.2e, without %.2e\n",
-              e_with / top, e_without / top);
+  std::printf("max |reading − RK4 sensor| / max T̄: with the lag %.2e, without %.2e\n", e_with / top,
+              e_without / top);
   EXPECT_LT(e_with, 1e-6 * top);
   EXPECT_GT(e_without, 1e-3 * top);  // the lag matters
 }
