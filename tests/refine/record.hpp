@@ -3,15 +3,18 @@
 // 20 sub-steps per ms, voltage held over each step as the daemon's DAC holds it) driven by an
 // excitation, sampled like the daemon samples, with optional sensor noise.
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <memory>
 #include <random>
+#include <span>
 #include <vector>
 
 #include "drivers/sim/plant.hpp"
 #include "excitation/excitation.hpp"
 #include "refine/fit.hpp"
+#include "refine/model_simulator.hpp"
 
 namespace scp::refine::test {
 
@@ -233,6 +236,22 @@ inline const std::vector<WindowSample>& cached_paper_record_n1(double seconds, u
     if (e.seconds == seconds && e.seed == seed) return e.window;
   cache.push_back({seconds, seed, paper_record(seconds, seeded(kN1, seed))});
   return cache.back().window;
+}
+
+// max |model − record| / max |record| per output (x, T̄): refine::simulate at θ and the
+// extensions' coefficients `tc`, from the record's first sample at rest.
+inline Eigen::Vector2d model_misfit(std::span<const WindowSample> w, const Vector6& theta,
+                                    const Tempcos& tc = {}) {
+  std::vector<ModelState> out(w.size());
+  simulate(w, theta, InitialState(w[0].x, 0.0, w[0].tbar), out, 0.0, tc);
+  double dx = 0.0, dt = 0.0, mx = 0.0, mt = 0.0;
+  for (std::size_t k = 0; k < w.size(); ++k) {
+    dx = std::max(dx, std::abs(out[k].x - w[k].x));
+    dt = std::max(dt, std::abs(out[k].tbar - w[k].tbar));
+    mx = std::max(mx, std::abs(w[k].x));
+    mt = std::max(mt, std::abs(w[k].tbar));
+  }
+  return {dx / mx, dt / mt};
 }
 
 }  // namespace scp::refine::test

@@ -38,18 +38,9 @@ std::vector<WindowSample> noise_free(const test::Deviations& d, double seconds) 
   return test::deviation_record(test::paper_actuator(), seconds, 1e-3, test::paper_voltage(), d);
 }
 
-// max |model − record| over the window relative to max |record|, per output.
+// max |model − record| relative to max |record|, per output.
 Vector2 misfit(std::span<const WindowSample> w, const Tempcos& tc) {
-  std::vector<ModelState> out(w.size());
-  simulate(w, test::theta_of(test::paper_actuator()), InitialState::Zero(), out, 0.0, tc);
-  double ex = 0.0, et = 0.0, mx = 0.0, mt = 0.0;
-  for (std::size_t k = 0; k < w.size(); ++k) {
-    ex = std::max(ex, std::abs(out[k].x - w[k].x));
-    et = std::max(et, std::abs(out[k].tbar - w[k].tbar));
-    mx = std::max(mx, std::abs(w[k].x));
-    mt = std::max(mt, std::abs(w[k].tbar));
-  }
-  return {ex / mx, et / mt};
+  return test::model_misfit(w, test::theta_of(test::paper_actuator()), tc);
 }
 
 TEST(Extensions, TheSimulatorFollowsAnIndependentRk4WithEachCoefficient) {

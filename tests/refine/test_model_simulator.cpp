@@ -18,16 +18,8 @@ struct Deviation {
 };
 
 Deviation deviation(const std::vector<WindowSample>& w, const Vector6& theta) {
-  std::vector<ModelState> out(w.size());
-  simulate(w, theta, InitialState(w[0].x, 0.0, w[0].tbar), out);
-  double dx = 0.0, dt = 0.0, mx = 0.0, mt = 0.0;
-  for (std::size_t k = 0; k < w.size(); ++k) {
-    dx = std::max(dx, std::abs(out[k].x - w[k].x));
-    dt = std::max(dt, std::abs(out[k].tbar - w[k].tbar));
-    mx = std::max(mx, std::abs(w[k].x));
-    mt = std::max(mt, std::abs(w[k].tbar));
-  }
-  return {dx / mx, dt / mt};
+  const Eigen::Vector2d m = test::model_misfit(w, theta);
+  return {m[0], m[1]};
 }
 
 TEST(ModelSimulator, AgreesWithRk4PlantOnThePaperExperiment) {
