@@ -428,6 +428,19 @@ WeightedSample add_timing_weighted(const PassSettings& settings, double wx, doub
   return out;
 }
 
+// PassSettings::landing_jitter: the landing filter's update at a sample, after its sensitivities
+// were used: a down-weighted sample (a displaced stamp) corrects the state as much less as it
+// counts. The reference trajectory is filtered alike, so that its residuals, which set the robust
+// weights, are innovations too.
+void update_with_landing(const PassSettings& settings, double wt, const WeightedSample& sample,
+                         const WindowSample& w, double t0, double rt, Reference& ref,
+                         SensitivitySimulator& sim) {
+  const Eigen::Vector3d gain = ref.filter.update_with_tbar(
+      1.0 / wt + settings.timing_variance * sample.gt * sample.gt, sample.omega);
+  sim.correct_with_tbar(gain, rt);
+  correct_with_tbar(ref.state, gain, ref.tbar_residual(w, settings, t0));
+}
+
 // With sensitivities: JᵀWJ, JᵀWr and, as PassSettings asks, the long-run covariance of the score,
 // its batch sums, the timing weights and the landing filter. Returns whether it gave up.
 bool jacobian_pass(std::span<const WindowSample> window, const ParamVector& p,
@@ -478,16 +491,7 @@ bool jacobian_pass(std::span<const WindowSample> window, const ParamVector& p,
     } else {
       sample = add_timing_weighted(settings, wx, wt, ref, window[k], sums.t0, rx, rt, jx, jt, r);
     }
-    if (ref.landing) {
-      // The update, after this sample's sensitivities were used: a down-weighted sample
-      // (a displaced stamp) corrects the state as much less as it counts.
-      const Eigen::Vector3d gain = ref.filter.update_with_tbar(
-          1.0 / wt + settings.timing_variance * sample.gt * sample.gt, sample.omega);
-      sim.correct_with_tbar(gain, rt);
-      // The reference trajectory is filtered alike, so that its residuals, which set the
-      // robust weights, are innovations too.
-      correct_with_tbar(ref.state, gain, ref.tbar_residual(window[k], settings, sums.t0));
-    }
+    if (ref.landing) update_with_landing(settings, wt, sample, window[k], sums.t0, rt, ref, sim);
     r.jtwr += sample.score;
     if (hac) hac->add(sample.score);
     if (batch_score != nullptr) *batch_score += sample.score;
