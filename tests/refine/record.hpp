@@ -254,4 +254,23 @@ inline Eigen::Vector2d model_misfit(std::span<const WindowSample> w, const Vecto
   return {dx / mx, dt / mt};
 }
 
+// For one slot: max |∂y/∂p − central difference| over the record, relative to the difference's
+// largest value (absolute where that is 0), per output (x, T̄). `up`, `down`: the model at p ± h;
+// dx, dt: the sensitivities at each sample.
+inline Eigen::Vector2d difference_error(const std::vector<ModelState>& up,
+                                        const std::vector<ModelState>& down, double h,
+                                        const std::vector<ParamVector>& dx,
+                                        const std::vector<ParamVector>& dt, int slot) {
+  double ex = 0.0, et = 0.0, mx = 0.0, mt = 0.0;
+  for (std::size_t k = 0; k < up.size(); ++k) {
+    const double fx = (up[k].x - down[k].x) / (2.0 * h);
+    const double ft = (up[k].tbar - down[k].tbar) / (2.0 * h);
+    ex = std::max(ex, std::abs(dx[k][slot] - fx));
+    et = std::max(et, std::abs(dt[k][slot] - ft));
+    mx = std::max(mx, std::abs(fx));
+    mt = std::max(mt, std::abs(ft));
+  }
+  return {mx > 0.0 ? ex / mx : ex, mt > 0.0 ? et / mt : et};
+}
+
 }  // namespace scp::refine::test

@@ -78,17 +78,9 @@ SensitivityDeviation sensitivity_deviation(const std::vector<WindowSample>& w,
     pd[slot] -= h;
     simulate(w, theta_of(pu), initial_state_of(pu), up);
     simulate(w, theta_of(pd), initial_state_of(pd), down);
-    double ex = 0.0, et = 0.0, mx = 0.0, mt = 0.0;
-    for (std::size_t k = 0; k < w.size(); ++k) {
-      const double fx = (up[k].x - down[k].x) / (2.0 * h);
-      const double ft = (up[k].tbar - down[k].tbar) / (2.0 * h);
-      ex = std::max(ex, std::abs(dx[k][slot] - fx));
-      et = std::max(et, std::abs(dt[k][slot] - ft));
-      mx = std::max(mx, std::abs(fx));
-      mt = std::max(mt, std::abs(ft));
-    }
-    worst.x = std::max(worst.x, mx > 0.0 ? ex / mx : ex);
-    worst.tbar = std::max(worst.tbar, mt > 0.0 ? et / mt : et);
+    const Eigen::Vector2d e = test::difference_error(up, down, h, dx, dt, slot);
+    worst.x = std::max(worst.x, e[0]);
+    worst.tbar = std::max(worst.tbar, e[1]);
   }
   return worst;
 }
