@@ -154,8 +154,10 @@ int RtuTransaction::judge_frame(int unit, int function) noexcept {
   return 2;
 }
 
-int RtuTransaction::receive_frame(int unit, int function, std::int64_t deadline_ns) noexcept {
+int RtuTransaction::receive_frame(int unit, int function, std::int64_t first_byte_by_ns,
+                                  std::int64_t byte_gap_ns, std::int64_t not_after_ns) noexcept {
   rx_len_ = 0;
+  std::int64_t deadline_ns = std::min(first_byte_by_ns, not_after_ns);
   for (;;) {
     const int ready = wait_bytes(deadline_ns);
     if (ready == 0) return ETIMEDOUT;
@@ -166,6 +168,10 @@ int RtuTransaction::receive_frame(int unit, int function, std::int64_t deadline_
     rx_len_ += n;
     const std::int64_t now = clock::monotonic_ns();
     line_busy_until_ns_ = std::max(line_busy_until_ns_, now);
+    // A reply that has begun may finish, as libmodbus's (mbpoll's) byte timeout lets it: the
+    // timeout bounds the wait for its first byte, then each pause between its bytes, and the
+    // cycle's budget bounds all of it.
+    deadline_ns = std::min(now + byte_gap_ns, not_after_ns);
     // Frames that are not the answer are refused at once; the rest of such a frame is discarded
     // while the silence before the next request is awaited.
     int verdict = 2;
@@ -195,8 +201,8 @@ int RtuTransaction::transact(int unit, const std::uint8_t* pdu, int pdu_len, Pdu
     unanswered_ = true;
     return err;
   }
-  const std::int64_t reply_by = std::min(sent_ns_ + timeout_ns, not_after_ns);
-  if (const int err = receive_frame(unit, pdu[0], reply_by); err != 0) {
+  if (const int err = receive_frame(unit, pdu[0], sent_ns_ + timeout_ns, timeout_ns, not_after_ns);
+      err != 0) {
     unanswered_ = true;
     return err;
   }

@@ -50,14 +50,15 @@ class RtuTransaction {
   bool attach(int fd) noexcept;
 
   // Sends `pdu` (function code and data) to `unit` on the attached port and collects its reply. The
-  // silence before the request is awaited for at most `timeout_s`, the reply for at most
-  // `timeout_s` after the request left, and neither past `not_after_ns` (CLOCK_MONOTONIC: the
-  // caller's budget for a cycle of transactions). Returns 0 with the reply's PDU in `reply` (its
-  // length in `reply_len`), or an errno-style code: ETIMEDOUT (no whole reply in time), EBUSY (the
-  // line never fell silent: bytes kept arriving), EMBBADCRC, EMBBADSLAVE (a reply from another
-  // unit), EMBBADDATA (a reply that is no answer to this request), or the errno of read/write.
-  // Exception replies are returned as replies. A whole, intact reply to another function (the
-  // previous request's, come late) is discarded and counted, and the wait goes on.
+  // silence before the request is awaited for at most `timeout_s`, the reply's first byte for at
+  // most `timeout_s` after the request left and each later byte for at most `timeout_s` after
+  // the one before (libmodbus's response and byte timeouts), and none past `not_after_ns`
+  // (CLOCK_MONOTONIC: the caller's budget for a cycle of transactions). Returns 0 with the reply's
+  // PDU in `reply` (its length in `reply_len`), or an errno-style code: ETIMEDOUT (no whole reply
+  // in time), EBUSY (the line never fell silent: bytes kept arriving), EMBBADCRC, EMBBADSLAVE (a
+  // reply from another unit), EMBBADDATA (a reply that is no answer to this request), or the errno
+  // of read/write. Exception replies are returned as replies. A whole, intact reply to another
+  // function (the previous request's, come late) is discarded and counted, and the wait goes on.
   int transact(int unit, const std::uint8_t* pdu, int pdu_len, Pdu& reply, int& reply_len,
                double timeout_s,
                std::int64_t not_after_ns = std::numeric_limits<std::int64_t>::max()) noexcept;
@@ -78,7 +79,10 @@ class RtuTransaction {
   // deadline, or an errno.
   int await_silence(std::int64_t deadline_ns) noexcept;
   int send_frame(int unit, const std::uint8_t* pdu, int pdu_len) noexcept;
-  int receive_frame(int unit, int function, std::int64_t deadline_ns) noexcept;
+  // Collects the reply: its first byte by `first_byte_by_ns`, each later one within
+  // `byte_gap_ns` of the one before, all of it by `not_after_ns`.
+  int receive_frame(int unit, int function, std::int64_t first_byte_by_ns, std::int64_t byte_gap_ns,
+                    std::int64_t not_after_ns) noexcept;
   // Judges the bytes received so far: 1 = our whole reply (rx_len_ cut to it), 0 = more bytes
   // needed, 2 = a late reply to another function was dropped, or an errno-style code.
   int judge_frame(int unit, int function) noexcept;
