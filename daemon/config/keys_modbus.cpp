@@ -167,8 +167,9 @@ void declare_modbus_keys(Binder& m, ModbusSettings& out) {
       "unit_id", out.unit_id, 1, 0, 255,
       "Modbus unit (slave) id of the DAQ: 1-247 on RTU; TCP devices often ignore it or use 255");
   m.number("response_timeout", out.response_timeout_s, 0.0004, 0.0001, 10.0,
-           "s a transaction may wait for its reply; times the transactions per cycle it must fit "
-           "in loop.period");
+           "s a transaction may wait for its reply (on RTU: for its first byte, then for each "
+           "later byte after the one before); times the transactions per cycle it must fit in "
+           "loop.period");
   m.number("offline_response_timeout", out.offline_response_timeout_s, 1.0, 0.0001, 60.0,
            "s a transaction may wait in scp-estimatord --offline (lock-step runs have no period "
            "budget: a late reply there is a loaded machine, not a dead DAQ)");
