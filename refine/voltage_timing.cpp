@@ -3,6 +3,7 @@
 #include <cmath>
 #include <limits>
 
+#include "refine/heater_power.hpp"
 #include "refine/stages.hpp"
 
 namespace scp::refine {
@@ -11,10 +12,15 @@ std::span<const WindowSample> prepare_window(std::span<const WindowSample> windo
                                              estimator::VoltageHold hold, VoltageInterval interval,
                                              std::vector<WindowSample>& storage,
                                              VoltageShape shape) {
-  if (reads_as_recorded(hold, interval) || window.empty()) return window;
+  const bool power = measures_current(window);
+  if ((reads_as_recorded(hold, interval) && !power) || window.empty()) return window;
   storage.assign(window.begin(), window.end());
   for (std::size_t k = 1; k < window.size(); ++k)
     storage[k] = prepared_sample(window[k - 1], window[k], hold, interval);
+  if (power) {
+    // Each row's voltage is now the one that drove its current (refine/heater_power.hpp).
+    use_measured_power(storage, reference_resistance(window, interval));
+  }
   if (hold == estimator::VoltageHold::foh && shape == VoltageShape::smooth)
     add_cubic_midpoints(storage);
   return storage;

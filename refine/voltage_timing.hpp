@@ -25,7 +25,9 @@ constexpr bool reads_as_recorded(estimator::VoltageHold hold, VoltageInterval in
 }
 
 // `window` as the model reads it under `hold` and `interval` (before or after), and with foh
-// `shape`: `window` itself when it reads_as_recorded, else `storage` filled and returned.
+// `shape`: `window` itself when it reads_as_recorded and has no currents, else `storage` filled
+// and returned. With the heater's current in every sample, each row's voltage becomes its heating
+// voltage, whose square is the measured power times R_ref (refine/heater_power.hpp).
 std::span<const WindowSample> prepare_window(std::span<const WindowSample> window,
                                              estimator::VoltageHold hold, VoltageInterval interval,
                                              std::vector<WindowSample>& storage,
