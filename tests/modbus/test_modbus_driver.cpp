@@ -137,8 +137,10 @@ TEST_F(ModbusDriverTest, TheHeaterCurrentIsDecodedWhereTheMapHasIt) {
   EXPECT_NEAR(s.current, 2.0, 1e-4);
   EXPECT_TRUE(std::isnan(s.xdot));
   driver.close();
+  daq.reset();
   std::remove(config.c_str());
 
+  port = 0;
   auto plain = test::start_simdaq(config_, port);
   ModbusDriver without(settings_for(port), kPeriod);
   without.open();
