@@ -4,14 +4,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <sstream>
 #include <vector>
 
-#include "drivers/replay/csv_trace.hpp"
 #include "drivers/sim/plant.hpp"
 #include "refine/fit.hpp"
 #include "refine/parameters.hpp"
 #include "refine/stages.hpp"
+#include "tests/benchsim/bench_window.hpp"
 #include "tools/benchsim/bench_file.hpp"
 
 namespace scp::tools::benchsim {
@@ -26,23 +25,12 @@ BenchFile zero_of_a_millimetre() {
   return f;
 }
 
-std::vector<refine::WindowSample> window_of(const BenchFile& f) {
-  std::ostringstream out;
-  write_bench_file(f, out);
-  std::istringstream in(out.str());
-  const drivers::replay::Trace trace = drivers::replay::parse_trace(in, "bench.csv");
-  std::vector<refine::WindowSample> w;
-  for (const drivers::Sample& s : trace.rows)
-    w.push_back({s.t, s.x, s.temperature - f.sim.ambient_c, s.voltage, s.voltage_since});
-  return w;
-}
-
 // The start itself: within a twentieth of the zero, where 0 (the start before it) was all of it.
 // In the daemon, from the paper law's θ̂, the old start stalled this seed at a fast mechanical pole
 // (θ1 11x off, `best: none`); the fit below converges from either, in half the passes from this.
 TEST(DisplacementZero, TheStartIsTheStaticEquilibriums) {
   const BenchFile f = zero_of_a_millimetre();
-  const std::vector<refine::WindowSample> w = window_of(f);
+  const std::vector<refine::WindowSample> w = test::window_of(f);
   const auto th = drivers::sim::theta_of(f.sim.plant);
   refine::ParamVector p = refine::ParamVector::Zero();
   for (int i = 0; i < 6; ++i) p[i] = 0.8 * th[static_cast<std::size_t>(i)];  // the ratio is right
@@ -60,7 +48,7 @@ TEST(DisplacementZero, TheStartIsTheStaticEquilibriums) {
 
 TEST(DisplacementZero, AMillimetreIsEstimatedAtN3) {
   const BenchFile f = zero_of_a_millimetre();
-  const std::vector<refine::WindowSample> w = window_of(f);
+  const std::vector<refine::WindowSample> w = test::window_of(f);
   refine::FitSettings settings;
   settings.voltage_hold = estimator::VoltageHold::foh;
   settings.voltage_shape = refine::VoltageShape::smooth;

@@ -7,14 +7,12 @@
 
 #include <cmath>
 #include <cstdio>
-#include <sstream>
 #include <string>
 #include <vector>
 
-#include "drivers/replay/csv_trace.hpp"
-#include "drivers/sim/plant.hpp"
 #include "refine/fit.hpp"
 #include "refine/heater_power.hpp"
+#include "tests/benchsim/bench_window.hpp"
 #include "tools/benchsim/bench_file.hpp"
 
 namespace scp::tools::benchsim {
@@ -37,27 +35,6 @@ BenchFile hot_heater(double seconds, double noise_current, unsigned seed) {
   return f;
 }
 
-// The file as the daemon's refinement receives it: T̄ above the configured ambient.
-std::vector<refine::WindowSample> window_of(const BenchFile& f, bool with_current) {
-  std::ostringstream out;
-  write_bench_file(f, out);
-  std::istringstream in(out.str());
-  const drivers::replay::Trace trace = drivers::replay::parse_trace(in, "bench.csv");
-  std::vector<refine::WindowSample> w;
-  w.reserve(trace.rows.size());
-  for (const drivers::Sample& s : trace.rows) {
-    refine::WindowSample r;
-    r.t = s.t;
-    r.x = s.x;
-    r.tbar = s.temperature - kAmbient;
-    r.voltage = s.voltage;
-    r.voltage_since = s.voltage_since;
-    if (with_current) r.current = s.current;
-    w.push_back(r);
-  }
-  return w;
-}
-
 refine::FitSettings settings() {
   refine::FitSettings s;  // the paper's model: every extension off, no nuisance term
   s.declared_noise = {1e-7, 1e-3};
@@ -65,10 +42,7 @@ refine::FitSettings settings() {
 }
 
 refine::Vector6 truth() {
-  const auto th = drivers::sim::theta_of(default_bench_file().sim.plant);
-  refine::Vector6 out;
-  for (int i = 0; i < 6; ++i) out[i] = th[static_cast<std::size_t>(i)];
-  return out;
+  return test::theta_of(default_bench_file());
 }
 
 refine::Vector6 start() {
@@ -97,7 +71,7 @@ void print(const char* what, const refine::FitResult& r) {
 
 TEST(MeasuredPower, AResistanceTempcoIsFittedRightWithTheExtensionOff) {
   const BenchFile f = hot_heater(300.0, 1e-5, 5);
-  const refine::FitResult r = refine::fit(window_of(f, true), start(), settings());
+  const refine::FitResult r = refine::fit(test::window_of(f, true), start(), settings());
   print("with the current", r);
   ASSERT_TRUE(r.converged) << r.message;
   const refine::Vector6 th = truth();
@@ -136,7 +110,7 @@ TEST(MeasuredPower, TheCurrentIsPairedWithTheVoltageThatDroveIt) {
     s.voltage_hold = c.hold;
     s.voltage_interval = c.interval;
     s.voltage_shape = refine::VoltageShape::smooth;
-    const refine::FitResult r = refine::fit(window_of(f, true), start(), s);
+    const refine::FitResult r = refine::fit(test::window_of(f, true), start(), s);
     print(std::string(name_of(c.timing)).substr(0, 10).c_str(), r);
     ASSERT_TRUE(r.converged) << r.message;
     const refine::Vector6 th = truth();
@@ -151,7 +125,7 @@ TEST(MeasuredPower, TheCurrentIsPairedWithTheVoltageThatDroveIt) {
 // either does not converge or its validation says so (the test above can fail).
 TEST(MeasuredPower, WithoutTheCurrentTheSameFileIsNotFittedRight) {
   const BenchFile f = hot_heater(60.0, 1e-4, 5);
-  const refine::FitResult r = refine::fit(window_of(f, false), start(), settings());
+  const refine::FitResult r = refine::fit(test::window_of(f, false), start(), settings());
   print("without the current", r);
   EXPECT_FALSE(r.heater.measured);
   EXPECT_TRUE(!r.converged ||
