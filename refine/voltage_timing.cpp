@@ -61,8 +61,8 @@ struct ThermalCriterion {
   double lag = 0.0;
 };
 
-ThermalCriterion thermal_criterion(std::span<const WindowSample> window,
-                                   const Vector6& theta_start, const FitSettings& settings) {
+ThermalCriterion thermal_criterion(std::span<const WindowSample> window, const Vector6& theta_start,
+                                   const FitSettings& settings) {
   FitState state;
   state.p = start_point(window, theta_start, settings.known);
   if (!state.p.allFinite()) return {};
