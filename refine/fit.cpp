@@ -122,7 +122,6 @@ FitResult fit_staged(std::span<const WindowSample> window, const Vector6& theta_
   StopReason stop = fit_thermal(ctx, state);
   if (stop == StopReason::none) stop = fit_input_delay(ctx, state);
   if (stop == StopReason::none) {
-    start_displacement_zero(window, settings, state.p);
     start_with_positive_damping(ctx, state);
     stop = search_scale(ctx, state);
   }

@@ -23,14 +23,6 @@ StopReason check_window(std::span<const WindowSample> window);
 ParamVector start_point(std::span<const WindowSample> window, const Vector6& theta_start,
                         const std::array<bool, kThetaSize>& known);
 
-// With the displacement sensor's zero estimated, after the thermal stage: the zero from the
-// window's mean x against the static equilibrium −(θ4/θ3)·T̄ (the T̄ the thermal stage's ambient
-// terms leave; the ratio does not depend on θ1..θ4's common scale), and x0 the first sample less
-// it. Otherwise a zero of a millimetre starts as a millimetre's displacement from rest, whose
-// relaxation the scale search can chase to a fast pole.
-void start_displacement_zero(std::span<const WindowSample> window, const FitSettings& settings,
-                             ParamVector& p);
-
 // The thermal block's slots (θ5, θ6 unless known, T̄0) and its passes (T̄ alone: the thermal block
 // does not see x).
 FreeMask thermal_slots(const std::array<bool, kThetaSize>& known);

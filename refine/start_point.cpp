@@ -73,20 +73,4 @@ ParamVector start_point(std::span<const WindowSample> window, const Vector6& the
   return p;
 }
 
-void start_displacement_zero(std::span<const WindowSample> window, const FitSettings& settings,
-                             ParamVector& p) {
-  if (settings.nuisance.x_zero.fixed || !(std::abs(p[kStiffness]) > 0.0)) return;
-  const double ratio = p[kThermalForce] / p[kStiffness];
-  double sum = 0.0;
-  for (const WindowSample& s : window) {
-    const double tbar =
-        s.tbar - p[kAmbientOffsetSlot] - p[kAmbientDriftSlot] * (s.t - window.front().t);
-    sum += s.x + ratio * tbar;
-  }
-  const double zero = sum / static_cast<double>(window.size());
-  if (!std::isfinite(zero)) return;
-  p[kXZeroSlot] = zero;
-  p[kX0] = window.front().x - zero;
-}
-
 }  // namespace scp::refine
