@@ -16,6 +16,7 @@
 #include <cmath>
 #include <vector>
 
+#include "refine/heater_power.hpp"
 #include "refine/stages.hpp"
 #include "refine/voltage_timing.hpp"
 #include "refine/warm_start.hpp"
@@ -159,6 +160,20 @@ FitResult fit_cold(std::span<const WindowSample> window, const Vector6& theta_st
   return result;
 }
 
+// fit() on a checked window.
+FitResult fit_checked(std::span<const WindowSample> window, const Vector6& theta_start,
+                      const FitSettings& settings) {
+  if (settings.warm == nullptr) return fit_cold(window, theta_start, settings);
+  FitResult warm = refit(window, *settings.warm, settings);
+  if (warm.warm) return warm;
+  // The warm attempt's work counts in what the fit cost.
+  FitResult result = fit_cold(window, theta_start, settings);
+  result.warm_fallback = warm.warm_fallback;
+  result.iterations += warm.iterations;
+  result.evaluations += warm.evaluations;
+  return result;
+}
+
 }  // namespace
 
 FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
@@ -168,14 +183,18 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
     result.theta = theta_start;
     return ended(result, bad);
   }
-  if (settings.warm == nullptr) return fit_cold(window, theta_start, settings);
-  FitResult warm = refit(window, *settings.warm, settings);
-  if (warm.warm) return warm;
-  // The warm attempt's work counts in what the fit cost.
-  FitResult result = fit_cold(window, theta_start, settings);
-  result.warm_fallback = warm.warm_fallback;
-  result.iterations += warm.iterations;
-  result.evaluations += warm.evaluations;
+  if (!measures_current(window)) return fit_checked(window, theta_start, settings);
+  // The measured power carries R(T̄): the resistance's extension has nothing left to model.
+  FitSettings power = settings;
+  power.extensions.resistance_tempco = ExtensionMode::off;
+  WarmStart warm;  // the previous fit's settings as this one's, so that the warm start applies
+  if (settings.warm != nullptr) {
+    warm = *settings.warm;
+    warm.settings.extensions.resistance_tempco = ExtensionMode::off;
+    power.warm = &warm;
+  }
+  FitResult result = fit_checked(window, theta_start, power);
+  publish_measured_power(window, result);
   return result;
 }
 

@@ -50,6 +50,10 @@ struct WindowSample {
   // quadratic through the interval's ends and middle (refine/voltage_timing.hpp takes it from a
   // cubic through four rows of a continuous voltage). NaN: the chord's, V linear.
   double voltage_mid = std::numeric_limits<double>::quiet_NaN();
+  // A, the heater's current at t (the DAQ's measurement, driven by the voltage over the interval
+  // ending at t), NaN when not measured. Measured in every sample of a window: the thermal input
+  // is the measured power V·I (refine/heater_power.hpp).
+  double current = std::numeric_limits<double>::quiet_NaN();
 };
 
 // The model's state at the window's first sample: x, ẋ, T̄.
@@ -182,6 +186,7 @@ struct FitResult {
   // The nuisance terms and extensions as the fit left them (refine/fit_terms.hpp).
   Nuisance nuisance;
   Extensions extensions;
+  HeaterResistance heater;
   // The model validation of the final pass (refine/validation.hpp); `validated` once it ran.
   ValidationReport validation;
   bool validated = false;
