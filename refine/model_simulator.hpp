@@ -20,6 +20,7 @@
 // one step.
 
 #include <Eigen/Core>
+#include <cmath>
 #include <span>
 
 #include "refine/fit.hpp"
@@ -39,12 +40,16 @@ struct Piece {
   double u = 0.0;    // V² at the start
   double du = 0.0;   // V²/s
   double ddu = 0.0;  // V²/s²
+  // What rounding the stamps leaves in τ (s): intervals of a uniformly sampled window differ by
+  // this much, and ThermalCache takes them as one.
+  double rounding = 0.0;
 };
 
 // Sub-piece j of m equal ones of `piece`, its V² re-expanded about its own start.
 inline Piece sub_piece(const Piece& piece, int j, int m) noexcept {
   const double h = piece.tau / m, s = h * j;
-  return {h, piece.u + (piece.du + piece.ddu * s) * s, piece.du + 2.0 * piece.ddu * s, piece.ddu};
+  return {h, piece.u + (piece.du + piece.ddu * s) * s, piece.du + 2.0 * piece.ddu * s, piece.ddu,
+          piece.rounding / m};
 }
 
 // V²'s mean over the piece and its value at the end.
@@ -97,11 +102,38 @@ ThermalPiece thermal_piece(double theta5, double tau) noexcept;
 int substeps(const Vector6& theta, double tbar, double tau, double kappa = 0.0) noexcept;
 inline constexpr double kMaxStiffnessPerSubstep = 1.5;  // the τ·ρ(A) bound of substeps()
 
+// substeps() for one θ and κ, asked once per piece of a pass: √|θ3| taken once where the
+// stiffness does not soften with T̄ (κ = 0), the same bits as substeps().
+class SubstepRule {
+ public:
+  SubstepRule(const Vector6& theta, double kappa) noexcept
+      : damping_(theta[kDamping]),
+        slope_(theta[kDampingSlope]),
+        stiffness_(theta[kStiffness]),
+        kappa_(kappa),
+        root_(std::sqrt(std::abs(theta[kStiffness]))) {}
+
+  int operator()(double tbar, double tau) const noexcept {
+    const double root =
+        kappa_ == 0.0 ? root_ : std::sqrt(std::abs(stiffness_ * (1.0 - kappa_ * tbar)));
+    const double n =
+        std::ceil(tau * (std::abs(damping_ + slope_ * tbar) + root) / kMaxStiffnessPerSubstep);
+    if (!(n > 1.0)) return 1;
+    return n < 1e5 ? static_cast<int>(n) : 100000;
+  }
+
+ private:
+  double damping_, slope_, stiffness_, kappa_, root_;
+};
+
 // The last ThermalPiece computed: a uniformly sampled window has one τ, so one exp per pass.
 class ThermalCache {
  public:
-  const ThermalPiece& get(double theta5, double tau) noexcept {
-    if (theta5 != theta5_ || tau != tau_) {
+  // A τ within `rounding` (Piece::rounding) of the last one is the same interval: a uniformly
+  // sampled window's intervals t_k − t_{k−1} differ by the rounding of its stamps, which the
+  // simulation carries either way, and recomputing would cost a series and an exp per sample.
+  const ThermalPiece& get(double theta5, double tau, double rounding = 0.0) noexcept {
+    if (theta5 != theta5_ || !(std::abs(tau - tau_) <= rounding)) {
       piece_ = thermal_piece(theta5, tau);
       theta5_ = theta5;
       tau_ = tau;

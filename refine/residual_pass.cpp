@@ -52,7 +52,8 @@ constexpr auto kTbarRowSlotsExtended = row_slots<in_tbar_output>();
 // Column Slots[B] of JᵀWJ's upper triangle += c·v over rows Slots[0..B]: a fixed-size segment
 // where the slots are the leading ones (x's row), else term by term.
 template <const auto& Slots, std::size_t B>
-inline void add_upper_column(ParamMatrix& h, const ParamVector& v, double c) noexcept {
+[[gnu::always_inline]] inline void add_upper_column(ParamMatrix& h, const ParamVector& v,
+                                                    double c) noexcept {
   constexpr int j = Slots[B];
   if constexpr (Slots.back() + 1 == static_cast<int>(Slots.size())) {
     h.col(j).template head<j + 1>() += c * v.template head<j + 1>();
