@@ -55,6 +55,7 @@ void take_progress(const FitContext& ctx, const FitState& state, FitResult& resu
   result.nuisance.ambient_offset = {!n.ambient_offset.fixed, state.p[kAmbientOffsetSlot], 0.0};
   result.nuisance.ambient_drift = {!n.ambient_drift.fixed, state.p[kAmbientDriftSlot], 0.0};
   result.nuisance.sensor_lag = {!n.sensor_lag.fixed, state.p[kSensorLagSlot], 0.0};
+  result.sensor_lag_held = state.sensor_lag_held;
   for (const ExtensionSlot& e : kExtensionTable) {
     ExtensionEstimate& out = result.extensions.*e.estimate;
     out.mode = ctx.settings.extensions.*e.mode;
@@ -119,6 +120,7 @@ FitResult fit_staged(std::span<const WindowSample> window, const Vector6& theta_
 
   FitContext ctx(window, settings);
   StopReason stop = fit_thermal(ctx, state);
+  if (stop == StopReason::none) stop = hold_undetermined_lag(ctx, state);
   if (stop == StopReason::none) stop = fit_input_delay(ctx, state);
   if (stop == StopReason::none) {
     start_with_positive_damping(ctx, state);

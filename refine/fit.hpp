@@ -181,6 +181,10 @@ struct FitResult {
   VoltageInterval voltage_interval = VoltageInterval::before;
   // The nuisance terms and extensions as the fit left them (refine/fit_terms.hpp).
   Nuisance nuisance;
+  // FitSettings estimates the sensor's lag, but this window could not tell it from the thermal
+  // block's other terms, and the fit held it at its prior (refine/lag_hold.hpp;
+  // nuisance.sensor_lag then reads not estimated).
+  bool sensor_lag_held = false;
   Extensions extensions;
   // The model validation of the final pass (refine/validation.hpp); `validated` once it ran.
   ValidationReport validation;
