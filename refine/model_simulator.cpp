@@ -3,14 +3,10 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <limits>
 
 namespace scp::refine {
 
-namespace {
-
-// The pieces between two samples, before their `rounding` is set.
-int split_interval(const WindowSample& prev, const WindowSample& cur, Piece out[2],
+int pieces_between(const WindowSample& prev, const WindowSample& cur, Piece out[2],
                    double input_delay) noexcept {
   const double dt = cur.t - prev.t;
   if (!(dt > 0.0)) return 0;
@@ -42,18 +38,6 @@ int split_interval(const WindowSample& prev, const WindowSample& cur, Piece out[
   return 1;
 }
 
-}  // namespace
-
-int pieces_between(const WindowSample& prev, const WindowSample& cur, Piece out[2],
-                   double input_delay) noexcept {
-  const int n = split_interval(prev, cur, out, input_delay);
-  // Each stamp is off by up to half an ulp, so two intervals' lengths by up to two ulps.
-  const double rounding =
-      4.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(prev.t), std::abs(cur.t));
-  for (int i = 0; i < n; ++i) out[i].rounding = rounding;
-  return n;
-}
-
 int substeps(const Vector6& theta, double tbar, double tau, double kappa) noexcept {
   return SubstepRule(theta, kappa)(tbar, tau);
 }
@@ -81,12 +65,12 @@ ThermalPiece thermal_piece(double theta5, double tau) noexcept {
 ThermalStep thermal_step(const Vector6& theta, const Tempcos& tc, const Piece& piece, double tbar,
                          ThermalCache& cache, ThermalPiece& tp) noexcept {
   if (!tc.thermal()) {
-    tp = cache.get(theta[kCooling], piece.tau, piece.rounding);
+    tp = cache.get(theta[kCooling], piece.tau);
     return {tp.decay * tbar + theta[kHeating] * tp.input(piece),
             tp.mean_of_start * tbar + theta[kHeating] * tp.mean(piece)};
   }
   const ThermalLinearization l = linearize_thermal(theta, tc, tbar, piece.u);
-  tp = cache.get(l.a, piece.tau, piece.rounding);
+  tp = cache.get(l.a, piece.tau);
   const double ramp_end = tp.gain1 * piece.du + tp.gain2 * piece.ddu;
   const double ramp_mean = tp.mean1 * piece.du + tp.mean2 * piece.ddu;
   return {tbar + tp.gain * l.f0 + l.b * ramp_end, tbar + tp.mean_of_input * l.f0 + l.b * ramp_mean};

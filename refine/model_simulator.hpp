@@ -40,16 +40,12 @@ struct Piece {
   double u = 0.0;    // V² at the start
   double du = 0.0;   // V²/s
   double ddu = 0.0;  // V²/s²
-  // What rounding the stamps leaves in τ (s): intervals of a uniformly sampled window differ by
-  // this much, and ThermalCache takes them as one.
-  double rounding = 0.0;
 };
 
 // Sub-piece j of m equal ones of `piece`, its V² re-expanded about its own start.
 inline Piece sub_piece(const Piece& piece, int j, int m) noexcept {
   const double h = piece.tau / m, s = h * j;
-  return {h, piece.u + (piece.du + piece.ddu * s) * s, piece.du + 2.0 * piece.ddu * s, piece.ddu,
-          piece.rounding / m};
+  return {h, piece.u + (piece.du + piece.ddu * s) * s, piece.du + 2.0 * piece.ddu * s, piece.ddu};
 }
 
 // V²'s mean over the piece and its value at the end.
@@ -129,11 +125,8 @@ class SubstepRule {
 // The last ThermalPiece computed: a uniformly sampled window has one τ, so one exp per pass.
 class ThermalCache {
  public:
-  // A τ within `rounding` (Piece::rounding) of the last one is the same interval: a uniformly
-  // sampled window's intervals t_k − t_{k−1} differ by the rounding of its stamps, which the
-  // simulation carries either way, and recomputing would cost a series and an exp per sample.
-  const ThermalPiece& get(double theta5, double tau, double rounding = 0.0) noexcept {
-    if (theta5 != theta5_ || !(std::abs(tau - tau_) <= rounding)) {
+  const ThermalPiece& get(double theta5, double tau) noexcept {
+    if (theta5 != theta5_ || tau != tau_) {
       piece_ = thermal_piece(theta5, tau);
       theta5_ = theta5;
       tau_ = tau;
