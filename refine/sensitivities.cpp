@@ -90,7 +90,6 @@ void SensitivitySimulator::advance_mechanical_sensitivities(const MechanicalPiec
                                                             const Eigen::Vector3d& dtbar_a,
                                                             const Eigen::Vector2d& ext_a) noexcept {
   using Slots = Eigen::Matrix<double, kModelSlots, 1>;  // θ and the initial state
-  using Extension = Eigen::Matrix<double, kExtensionSlots, 1>;
   const ModelState& b = state_;
   const double th2 = theta_[kDampingSlope], th3 = theta_[kStiffness], th4 = theta_[kThermalForce];
   const double kappa = tc_.kappa;
@@ -114,11 +113,6 @@ void SensitivitySimulator::advance_mechanical_sensitivities(const MechanicalPiec
     g[kTbar0] = via * dt[2];
     return g;
   };
-  // The extensions' slots: ρ and γ through T̄ (ext: ∂T̄/∂ρ, ∂T̄/∂γ), κ directly.
-  auto extension_forcing = [&](const ModelState& s, const Eigen::Vector2d& ext) noexcept {
-    const double via = through_tbar(s);
-    return Extension(via * ext[0], th3 * s.tbar * s.x, via * ext[1]);
-  };
   // G at the piece's start is G at the previous piece's end unless a correction moved the state
   // in between (correct_with_tbar).
   const Slots ga = forcing_valid_ ? forcing_end_ : forcing(a, dtbar_a);
@@ -139,7 +133,26 @@ void SensitivitySimulator::advance_mechanical_sensitivities(const MechanicalPiec
   const Slots sx = dx_.head<kModelSlots>(), sv = dxdot_.head<kModelSlots>();
   dx_.head<kModelSlots>() = e(0, 0) * sx + e(0, 1) * sv + ax * ga + bx * gb;
   dxdot_.head<kModelSlots>() = e(1, 0) * sx + e(1, 1) * sv + av * ga + bv * gb;
-  if (!extended_) return;
+  if (extended_) advance_extension_sensitivities(mp, a, ext_a);
+}
+
+void SensitivitySimulator::advance_extension_sensitivities(const MechanicalPiece& mp,
+                                                           const ModelState& a,
+                                                           const Eigen::Vector2d& ext_a) noexcept {
+  using Extension = Eigen::Matrix<double, kExtensionSlots, 1>;
+  const ModelState& b = state_;
+  const double th2 = theta_[kDampingSlope], th3 = theta_[kStiffness], th4 = theta_[kThermalForce];
+  // The extensions' slots: ρ and γ through T̄ (ext: ∂T̄/∂ρ, ∂T̄/∂γ, times ∂ẍ/∂T̄), κ directly.
+  const auto extension_forcing = [&](const ModelState& s, const Eigen::Vector2d& ext) noexcept {
+    const double via = -(th2 * s.xdot + th4) + th3 * tc_.kappa * s.x;
+    return Extension(via * ext[0], th3 * s.tbar * s.x, via * ext[1]);
+  };
+  // As the other slots' (advance_mechanical_sensitivities): am = (τ − kq)·G(0), bm = (τ − kq)·ΔG.
+  const double tau = mp.tau;
+  const double scale = tau - tau * tau * tau / 12.0 * mp.q;
+  const Matrix2& e = mp.ef.exp;
+  const Matrix2& f1 = mp.ef.phi1;
+  const Matrix2& f2 = mp.ef.phi2;
   const Extension ea = scale * extension_forcing(a, ext_a);
   const Extension eb = scale * extension_forcing(b, Eigen::Vector2d(dtbar_[kResistanceTempcoSlot],
                                                                     dtbar_[kCoolingTempcoSlot])) -

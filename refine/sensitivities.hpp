@@ -59,6 +59,9 @@ class SensitivitySimulator {
   void advance_mechanical_sensitivities(const MechanicalPiece& mp, const ModelState& a,
                                         const Eigen::Vector3d& dtbar_a,
                                         const Eigen::Vector2d& ext_a) noexcept;
+  // The same for the extensions' slots (`extended`).
+  void advance_extension_sensitivities(const MechanicalPiece& mp, const ModelState& a,
+                                       const Eigen::Vector2d& ext_a) noexcept;
 
   Vector6 theta_;
   SubstepRule substep_rule_;
