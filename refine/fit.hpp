@@ -128,6 +128,12 @@ struct FitSettings {
   // the full staged fit from `theta_start` when the warm start does not apply or does not
   // converge (FitResult::warm, warm_fallback). Not part of what a warm start compares.
   const WarmStart* warm = nullptr;
+  // false: `theta_start`'s common scale of θ1..θ4 is a converged fit's of an overlapping window,
+  // and the full fit takes it as it is instead of searching for it (stage (b), whose passes run
+  // at up to 30 times the start's stiffness). fit() clears it itself for the full fit a warm
+  // refit gives way to when its joint stage did not converge (WarmFallback::not_converged) from
+  // a converged warm start and `theta_start` is its θ. Not part of what a warm start compares.
+  bool search_scale = true;
 };
 
 // √χ²₂(0.99): the radius within which 99 % of a two-channel Gaussian residual falls.
