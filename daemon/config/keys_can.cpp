@@ -65,8 +65,8 @@ void declare_can_keys(Binder& can_section, CanSettings& out) {
   static constexpr const char* kDocs[drivers::can::kSignalCount] = {
       "position x in m (required)", "velocity ẋ in m/s (optional; else estimated from x)",
       "temperature T in °C, absolute (required)", "voltage read back in V (optional)",
-      "the heater's current in A (optional; present: the refinement's thermal input is the "
-      "measured power V·I)"};
+      ("the heater's current in A (optional; present: the refinement's thermal input is the "
+       "measured power V·I)")};
   for (int i = 0; i < drivers::can::kSignalCount; ++i) {
     const std::string name = drivers::can::kSignalNames[i];
     Binder b = can_section.section(name, kDocs[i]);
