@@ -111,7 +111,12 @@ class RefinerTest : public ::testing::Test {
           r.initial_state = fitted_initial_;
           r.converged = converge_ && !stall_;
           r.message = r.converged ? "converged" : "gave up";
-          if (stall_) r.stop = scp::refine::StopReason::stalled;
+          if (stall_) r.stop = stop_;
+          // Validated as refine::fit validates its solution: adequate, or what it says of a
+          // model the window rejects.
+          r.validated = true;
+          r.validation.mechanical.verdict = r.validation.thermal.verdict =
+              structure_ ? scp::refine::Verdict::kStructure : scp::refine::Verdict::kAdequate;
           r.iterations = 3;
           r.theta = fitted_theta_;
           r.sigma = fitted_sigma_;
@@ -137,6 +142,8 @@ class RefinerTest : public ::testing::Test {
   std::vector<Call> calls_;
   bool converge_ = true;
   bool stall_ = false;
+  scp::refine::StopReason stop_ = scp::refine::StopReason::stalled;  // of a fit that stalls
+  bool structure_ = false;
   bool warm_accepted_ = true;
   scp::refine::InitialState fitted_initial_{1e-4, 0.0, 5.0};
   Vector6 fitted_theta_ = (Vector6() << 10, 20, 30, 40, 50, 60).finished();
@@ -379,6 +386,38 @@ TEST_F(RefinerTest, AfterAFitThatStalledTheNextWaitsForTheWindowToDoubleOrRenew)
   ASSERT_EQ(calls_.size(), 6U);  // at 16 s, then 26 s
   EXPECT_NEAR(calls_[4].t_end, 16.0, 1e-9);
   EXPECT_NEAR(calls_[5].t_end, 26.0, 1e-9);
+}
+
+// The same for every way a fit finds a window its model cannot explain: it spends its passes' or
+// sub-steps' budget, or converges to a solution the validation rejects. An unusable window or a
+// cancelled fit is not the model's failure: the next fit comes an interval later.
+TEST_F(RefinerTest, AfterAFitThatFoundTheModelRejectedTheNextWaitsForTheWindowToDouble) {
+  using scp::refine::StopReason;
+  struct Case {
+    StopReason stop;
+    bool structure;
+    bool backs_off;
+  };
+  for (const Case c :
+       {Case{StopReason::work_budget_spent, false, true},
+        Case{StopReason::evaluation_budget_spent, false, true},
+        Case{StopReason::model_unstable, false, true}, Case{StopReason::none, true, true},
+        Case{StopReason::cancelled, false, false},
+        Case{StopReason::window_too_short, false, false}}) {
+    calls_.clear();
+    stall_ = c.stop != StopReason::none;
+    stop_ = c.stop;
+    structure_ = c.structure;
+    Refiner r = make();
+    feed(r, 0.0, 9.0);
+    const char* what = c.structure ? "structure verdict" : scp::refine::to_text(c.stop);
+    if (c.backs_off) {
+      ASSERT_EQ(calls_.size(), 2U) << what;  // at 3 s and 6 s, as after a stall
+      EXPECT_NEAR(calls_[1].t_end, 6.0, 1e-9) << what;
+    } else {
+      EXPECT_EQ(calls_.size(), 4U) << what;  // at 3 s, then every interval (2 s) to 9 s
+    }
+  }
 }
 
 TEST_F(RefinerTest, HasUnfittedDataOnlyWhenNewSamplesCameAfterTheLastFit) {

@@ -97,6 +97,21 @@ void copy_result(const scp::refine::FitResult& r, RefinedView& v) noexcept {
   std::strncpy(v.message.data(), r.message != nullptr ? r.message : "", v.message.size() - 1);
 }
 
+// Whether the fit found a window its model cannot explain: it ended because the model could not
+// follow the data (stalled on a pole beyond the sampling, unstable, or its passes' or sub-steps'
+// budget spent on the way), or it converged to a solution the validation rejects (a `structure`
+// verdict). Not a cancelled fit or an unusable window.
+bool model_rejected(const scp::refine::FitResult& r) noexcept {
+  using scp::refine::StopReason;
+  using scp::refine::Verdict;
+  if (r.stop == StopReason::stalled || r.stop == StopReason::work_budget_spent ||
+      r.stop == StopReason::evaluation_budget_spent || r.stop == StopReason::model_unstable)
+    return true;
+  return r.converged && r.validated &&
+         (r.validation.mechanical.verdict == Verdict::kStructure ||
+          r.validation.thermal.verdict == Verdict::kStructure);
+}
+
 }  // namespace
 
 Refiner::Refiner(const config::RefineSettings& settings,
@@ -299,12 +314,10 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
 
   fitted_in_window_ = true;
   last_fit_t_end_ = window_.empty() ? now_t : window_.back().t;
-  // A fit that stalled found data its model cannot explain; refitting a window that is mostly the
-  // same data would stall again at the cost of a full fit each interval. The next attempt waits
-  // until the window has doubled, or once full, renewed.
-  stalled_wait_s_ = r.stop == scp::refine::StopReason::stalled
-                        ? std::min(r.t_end - r.t_begin, settings_.window_s)
-                        : 0.0;
+  // A window the model cannot explain: refitting one that is mostly the same data would end the
+  // same way, at the cost of a whole budget (hundreds of passes) each interval. The next attempt
+  // waits until the window has doubled, or once full, renewed.
+  stalled_wait_s_ = model_rejected(r) ? std::min(r.t_end - r.t_begin, settings_.window_s) : 0.0;
   // The next fit's warm start, whether or not this one converged (refine::fit declines one that
   // did not, and says so). None on a link whose timing the fit estimates: a warm refit would hold
   // the voltage's delay at the previous fit's and has not been shown sound beside the jitter and

@@ -64,7 +64,8 @@ class Refiner {
   std::size_t drain(HandOffRing& ring) noexcept;
 
   // The window spans min_window_s and interval_s of loop time passed since the last fit's data
-  // (after a fit that stalled: the span of that fit's window, up to window_s, if longer).
+  // (after a fit whose model the window rejected, refiner.cpp's model_rejected: the span of that
+  // fit's window, up to window_s, if longer).
   bool due() const noexcept;
   // The window spans min_window_s and holds samples newer than the last fit (the end of a batch
   // run fits once more then).
@@ -114,8 +115,8 @@ class Refiner {
   std::uint64_t segment_ = 0;
   bool fitted_in_window_ = false;
   double last_fit_t_end_ = 0.0;
-  // After a fit that stalled (refine::StopReason::stalled): loop time the next fit waits for
-  // instead of interval_s, when longer.
+  // After a fit whose model the window rejected: loop time the next fit waits for instead of
+  // interval_s, when longer.
   double stalled_wait_s_ = 0.0;
   bool have_converged_ = false;
   Vector6 last_converged_ = Vector6::Zero();
