@@ -326,8 +326,9 @@ void declare_refine(Binder& refine, RefineSettings& out) {
                     " bytes per sample of it (window_s / loop.period_s samples, locked with the "
                     "rest; the solver streams its sensitivities)");
   refine.number("interval_s", out.interval_s, 10.0, 0.01, 3600.0,
-                "a fit every this much loop time once min_window_s of data are there; the "
-                "refined estimate stops being `best` when its fit is older than 3 intervals");
+                "a fit every this much loop time once min_window_s of data are there (after a "
+                "fit whose model the window rejects, when the window has doubled or renewed); "
+                "the refined estimate stops being `best` when its fit is older than 3 intervals");
   refine.number("min_window_s", out.min_window_s, 30.0, 0.01, 3600.0,
                 "no fit on less data than this (a gap starts a new window); at most window_s");
   refine.integer("max_iterations", out.max_iterations, 100, 1, 100000,
