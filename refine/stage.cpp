@@ -65,7 +65,7 @@ Eigen::MatrixXd Coordinates::jacobian() const {
 
 StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c,
                       const PassSettings& pass_settings, int max_iterations, Budget& budget,
-                      const TbarRange& range) {
+                      const TbarRange& range, double initial_damping) {
   const double cost_floor = rounding_cost(
       window,
       {pass_settings.thermal_only ? 0.0 : pass_settings.weight[0], pass_settings.weight[1]});
@@ -98,6 +98,7 @@ StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c
   };
   LmSettings lm;
   lm.max_iterations = max_iterations;
+  lm.initial_damping = initial_damping;
   lm.observations = static_cast<double>(window.size()) *
                     ((pass_settings.weight[0] > 0.0 && !pass_settings.thermal_only ? 1.0 : 0.0) +
                      (pass_settings.weight[1] > 0.0 ? 1.0 : 0.0));

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "refine/budget.hpp"
+#include "refine/levenberg_marquardt.hpp"
 #include "refine/parameters.hpp"
 #include "refine/residual_pass.hpp"
 
@@ -77,10 +78,10 @@ struct StageResult {
 
 // Levenberg–Marquardt from c.base over c's slots, with passes of `pass_settings` on `window`. A
 // trial whose model is not finite or not stable over `range` (widened by its own pass) is a
-// failed step.
+// failed step. `initial_damping`: LmSettings's.
 StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c,
                       const PassSettings& pass_settings, int max_iterations, Budget& budget,
-                      const TbarRange& range = {});
+                      const TbarRange& range = {}, double initial_damping = kInitialDamping);
 
 // Degrees of freedom left in a channel of n samples with p parameters acting on it.
 inline double dof(std::size_t n, std::size_t p) {
