@@ -26,9 +26,9 @@ struct FitContext {
   // holds (hold_undetermined_lag).
   FitSettings settings;
   int max_iterations;  // of each Levenberg–Marquardt run
-  // The joint stage's first damping (LmSettings::initial_damping): 0 where it starts from a
-  // converged neighbour's solution (refine/warm_start.hpp).
-  double joint_initial_damping = kInitialDamping;
+  // How the joint stage runs: from a converged neighbour's solution (refine/warm_start.hpp), with
+  // Gauss–Newton's first step, and its trials carrying the covariance's sums.
+  StageOptions joint_options;
   std::array<double, 2> variance_floor;  // x, T̄
   Budget budget;                         // every pass of the fit counts against it
 };

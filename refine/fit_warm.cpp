@@ -108,6 +108,7 @@ WarmStart warm_start(const FitResult& fit, const FitSettings& settings, const Wi
   w.input_delay_sigma_inflation = fit.input_delay_sigma_inflation;
   w.voltage_interval = fit.voltage_interval;
   w.extensions = fit.extensions;
+  w.hac_lags = fit.hac_lags;
   return w;
 }
 
@@ -154,8 +155,13 @@ FitResult joint_refit(std::span<const WindowSample> prepared, const WarmStart& f
   FitContext ctx(prepared, settings);
   ctx.max_iterations = std::min(ctx.max_iterations, max_iterations);
   // Beside the solution: Gauss–Newton's own step, which converges in one or two where the
-  // default damping held back most of the step along the common scale of θ1..θ4 (4 passes).
-  ctx.joint_initial_damping = 0.0;
+  // default damping held back most of the step along the common scale of θ1..θ4 (4 passes);
+  // each trial carries the covariance's sums (with the previous fit's Newey–West lags), so that
+  // the pass that shows convergence is also the covariance's.
+  ctx.joint_options.initial_damping = 0.0;
+  ctx.joint_options.decrement_tolerance = kWarmDecrementTolerance;
+  const TrialCovariance sums = covariance_sums(ctx, from.hac_lags);
+  if (from.hac_lags > 0) ctx.joint_options.trial_covariance = &sums;
   FitState state = shifted_state(prepared, from, settings);
   if (state.delay.ok) ctx.budget.set_input_delay(state.delay.delay);
   StopReason stop =

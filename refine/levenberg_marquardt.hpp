@@ -61,6 +61,9 @@ bool runs_past_resolution(const Evaluation& start, const Evaluation& current,
 // has a tiny eigenvalue along the common scale of θ1..θ4 (docs/numerics.md, "A consistent
 // estimate") and a μ above it would crush every step along it.
 inline constexpr double kInitialDamping = 1e-10;
+// Converged when the Gauss–Newton step would lower the cost by less than this fraction of the
+// cost per observation: with weights 1/σ², a step below 1e-3 σ of every parameter.
+inline constexpr double kDecrementTolerance = 1e-6;
 
 struct LmSettings {
   int max_iterations = 100;
@@ -69,9 +72,7 @@ struct LmSettings {
   // kInitialDamping holds back a step: the scaled eigenvalue there can be below it (2.7e-11 on
   // the paper's 300 s window), and each damped step then leaves a fixed fraction of the way.
   double initial_damping = kInitialDamping;
-  // Converged when the Gauss–Newton step would lower the cost by less than this fraction of the
-  // cost per observation: with weights 1/σ², a step below 1e-3 σ of every parameter.
-  double decrement_tolerance = 1e-6;
+  double decrement_tolerance = kDecrementTolerance;
   double observations = 1.0;  // weighted observations in the cost (to normalize it)
   // A cost this small is the residual of rounding (noise-free data): converged.
   double cost_floor = 0.0;
