@@ -76,8 +76,10 @@ FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
 // The joint stage, the covariance and the verdict on a window already prepared
 // (refine/voltage_timing.hpp), from `from`'s solution at the window's first sample, with at most
 // `max_iterations` per round of the noise model: the end of a fit whose start is known. Returns
-// whatever it reached (converged or not, with its residuals where the stage ran).
+// whatever it reached (converged or not, with its residuals where the stage ran). `neighbour`:
+// `from` is a converged neighbour's solution (the warm refit): Gauss–Newton's step first,
+// convergence at kWarmDecrementTolerance, the covariance from the pass that shows it.
 FitResult joint_refit(std::span<const WindowSample> prepared, const WarmStart& from,
-                      const FitSettings& settings, int max_iterations);
+                      const FitSettings& settings, int max_iterations, bool neighbour = false);
 
 }  // namespace scp::refine
