@@ -80,7 +80,7 @@ void carry_choice(const Extensions& chosen, const ExtensionSettings& asked, Exte
 
 // The joint stage from a converged neighbour's solution: Gauss–Newton's own step first, which
 // converges in one or two where the default damping held back most of the step along the common
-// scale of θ1..θ4 (4 passes); each trial carries the covariance's sums (with the previous fit's
+// scale of θ1..θ4; each trial carries the covariance's sums (with the previous fit's
 // Newey–West lags), so that the pass that shows convergence is also the covariance's. Not where
 // the covariance needs more than that pass at the solution's own weights: an estimated delay's
 // error (a second pass), or the samples' timing jitter (its reference trajectory is the round's

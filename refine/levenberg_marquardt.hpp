@@ -69,8 +69,8 @@ struct LmSettings {
   int max_iterations = 100;
   // 0: the first step is Gauss–Newton's, undamped, for a start already beside the solution (a
   // warm refit); a failed step then moves on from kInitialDamping. Along the common scale even
-  // kInitialDamping holds back a step: the scaled eigenvalue there can be below it (2.7e-11 on
-  // the paper's 300 s window), and each damped step then leaves a fixed fraction of the way.
+  // kInitialDamping holds back a step: the scaled eigenvalue there can be below it
+  // (docs/numerics.md), and each damped step then leaves a fixed fraction of the way.
   double initial_damping = kInitialDamping;
   double decrement_tolerance = kDecrementTolerance;
   double observations = 1.0;  // weighted observations in the cost (to normalize it)
