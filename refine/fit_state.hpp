@@ -25,7 +25,10 @@ struct FitContext {
   // The caller's settings, but for a sensor's lag the window cannot determine, which the fit then
   // holds (hold_undetermined_lag).
   FitSettings settings;
-  int max_iterations;                    // of each Levenberg–Marquardt run
+  int max_iterations;  // of each Levenberg–Marquardt run
+  // How the joint stage runs: from a converged neighbour's solution (refine/warm_start.hpp), with
+  // Gauss–Newton's first step, and its trials carrying the covariance's sums.
+  StageOptions joint_options;
   std::array<double, 2> variance_floor;  // x, T̄
   Budget budget;                         // every pass of the fit counts against it
 };

@@ -78,6 +78,23 @@ void carry_choice(const Extensions& chosen, const ExtensionSettings& asked, Exte
   }
 }
 
+// The joint stage from a converged neighbour's solution: Gauss–Newton's own step first, which
+// converges in one or two where the default damping held back most of the step along the common
+// scale of θ1..θ4; each trial carries the covariance's sums (with the previous fit's
+// Newey–West lags), so that the pass that shows convergence is also the covariance's. Not where
+// the covariance needs more than that pass at the solution's own weights: an estimated delay's
+// error (a second pass), or the samples' timing jitter (its reference trajectory is the round's
+// start).
+StageOptions neighbour_options(const WarmStart& from, const FitState& state,
+                               const FitSettings& settings, const TrialCovariance& sums) {
+  StageOptions options;
+  options.initial_damping = 0.0;
+  options.decrement_tolerance = kWarmDecrementTolerance;
+  if (from.hac_lags > 0 && !state.delay.ok && !settings.sample_timing_jitter)
+    options.trial_covariance = &sums;
+  return options;
+}
+
 FitResult declined(FitResult& result, WarmFallback why) {
   result.warm = false;
   result.warm_fallback = why;
@@ -108,6 +125,7 @@ WarmStart warm_start(const FitResult& fit, const FitSettings& settings, const Wi
   w.input_delay_sigma_inflation = fit.input_delay_sigma_inflation;
   w.voltage_interval = fit.voltage_interval;
   w.extensions = fit.extensions;
+  w.hac_lags = fit.hac_lags;
   return w;
 }
 
@@ -144,7 +162,7 @@ WarmFallback applicable(const WarmStart& warm, std::span<const WindowSample> win
 }
 
 FitResult joint_refit(std::span<const WindowSample> prepared, const WarmStart& from,
-                      const FitSettings& settings, int max_iterations) {
+                      const FitSettings& settings, int max_iterations, bool neighbour) {
   FitResult result;
   result.theta = from.theta;
   result.voltage_interval = from.voltage_interval;
@@ -155,6 +173,8 @@ FitResult joint_refit(std::span<const WindowSample> prepared, const WarmStart& f
   ctx.max_iterations = std::min(ctx.max_iterations, max_iterations);
   FitState state = shifted_state(prepared, from, settings);
   if (state.delay.ok) ctx.budget.set_input_delay(state.delay.delay);
+  const TrialCovariance sums = covariance_sums(ctx, from.hac_lags);
+  if (neighbour) ctx.joint_options = neighbour_options(from, state, settings, sums);
   StopReason stop =
       from.sensor_lag_held ? judge_held_lag(ctx, state, from.sensor_lag) : StopReason::none;
   if (stop == StopReason::none) stop = fit_joint(ctx, state);
@@ -178,7 +198,7 @@ FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
   const std::span<const WindowSample> prepared = prepare_window(
       window, settings.voltage_hold, warm.voltage_interval, storage, settings.voltage_shape);
   result = joint_refit(prepared, warm, with_chosen_extensions(settings, warm.extensions),
-                       kWarmIterations);
+                       kWarmIterations, true);
   if (!result.validated && !result.converged) return declined(result, WarmFallback::not_converged);
   if (!result.converged) return declined(result, WarmFallback::verdict_failed);
   carry_choice(warm.extensions, settings.extensions, result.extensions);

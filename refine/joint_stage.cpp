@@ -85,7 +85,7 @@ StopReason fit_joint(FitContext& ctx, FitState& state) {
   for (int round = 0; round < rounds; ++round) {
     state.joint =
         run_stage(ctx.window, Coordinates(free, state.p), joint_pass_settings(ctx.settings, state),
-                  ctx.max_iterations, ctx.budget, state.range);
+                  ctx.max_iterations, ctx.budget, state.range, ctx.joint_options);
     state.iterations += state.joint.iterations;
     if (state.joint.pass.finite) state.p = state.joint.p;
     if (state.joint.stopped) return ctx.budget.stop();

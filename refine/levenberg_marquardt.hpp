@@ -57,11 +57,22 @@ bool runs_past_resolution(const Evaluation& start, const Evaluation& current,
     return false;
 }
 
+// The damping μ a run starts with, on the Jacobi-scaled normal matrix: small, since that matrix
+// has a tiny eigenvalue along the common scale of θ1..θ4 (docs/numerics.md, "A consistent
+// estimate") and a μ above it would crush every step along it.
+inline constexpr double kInitialDamping = 1e-10;
+// Converged when the Gauss–Newton step would lower the cost by less than this fraction of the
+// cost per observation: with weights 1/σ², a step below 1e-3 σ of every parameter.
+inline constexpr double kDecrementTolerance = 1e-6;
+
 struct LmSettings {
   int max_iterations = 100;
-  // Converged when the Gauss–Newton step would lower the cost by less than this fraction of the
-  // cost per observation: with weights 1/σ², a step below 1e-3 σ of every parameter.
-  double decrement_tolerance = 1e-6;
+  // 0: the first step is Gauss–Newton's, undamped, for a start already beside the solution (a
+  // warm refit); a failed step then moves on from kInitialDamping. Along the common scale even
+  // kInitialDamping holds back a step: the scaled eigenvalue there can be below it
+  // (docs/numerics.md), and each damped step then leaves a fixed fraction of the way.
+  double initial_damping = kInitialDamping;
+  double decrement_tolerance = kDecrementTolerance;
   double observations = 1.0;  // weighted observations in the cost (to normalize it)
   // A cost this small is the residual of rounding (noise-free data): converged.
   double cost_floor = 0.0;
@@ -84,10 +95,7 @@ LmOutcome<Evaluation> levenberg_marquardt(Evaluate&& evaluate, Eigen::VectorXd z
   }
   const Evaluation start = out.at_z;
   const Eigen::Index n = z.size();
-  // μ starts small: the scaled normal matrix of the mechanical block has a tiny eigenvalue (the
-  // common scale of θ1..θ4, docs/numerics.md, "A consistent estimate"), and a μ above it would
-  // crush every step along it.
-  double mu = 1e-10, nu = 2.0;
+  double mu = settings.initial_damping, nu = 2.0;
   for (int it = 0; it < settings.max_iterations; ++it) {
     out.iterations = it + 1;
     const Evaluation& cur = out.at_z;
@@ -117,7 +125,7 @@ LmOutcome<Evaluation> levenberg_marquardt(Evaluate&& evaluate, Eigen::VectorXd z
     damped.diagonal().array() += mu;
     Eigen::LLT<Eigen::MatrixXd> llt(damped);
     if (llt.info() != Eigen::Success) {
-      mu *= nu;
+      mu = mu > 0.0 ? mu * nu : kInitialDamping;
       nu *= 2.0;
       continue;
     }
@@ -155,7 +163,7 @@ LmOutcome<Evaluation> levenberg_marquardt(Evaluate&& evaluate, Eigen::VectorXd z
         out.message = "stalled: the step runs beyond the sampling's resolution";
         return out;
       }
-      mu *= nu;
+      mu = mu > 0.0 ? mu * nu : kInitialDamping;
       nu *= 2.0;
       // The linear model promises less than the cost's own rounding can show: done.
       if (predicted <= 1e-12 * cur.cost) {

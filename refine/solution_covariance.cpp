@@ -1,6 +1,7 @@
 // The covariance at the joint solution (refine/stages.hpp: estimate_covariance).
 #include <algorithm>
 #include <cmath>
+#include <memory>
 
 #include "refine/covariance.hpp"
 #include "refine/stages.hpp"
@@ -55,28 +56,51 @@ void publish_residuals(const FitContext& ctx, const FitState& state, const PassR
                                      std::sqrt(pass.rss[1] / dof(n, parameters[1])));
 }
 
+// The joint stage ended on a trial pass that carried the covariance's sums (StageOptions::
+// trial_covariance) at the solution: that pass is the covariance's. Its weights are those of the
+// joint stage's last round, which the noise model's re-estimate then confirmed within its
+// settling tolerance (refine/joint_stage.cpp).
+bool joint_pass_has_the_sums(const FitContext& ctx, const FitState& state) {
+  return ctx.joint_options.trial_covariance != nullptr && state.joint.validator != nullptr &&
+         state.joint.pass.finite && state.joint.p == state.p;
+}
+
 }  // namespace
 
-CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, FitResult& result) {
-  CovarianceOutcome out;
-  const int lags = newey_west_lags(ctx, state.joint.pass);
-  PassSettings ps = joint_pass_settings(ctx.settings, state);
-  ps.hac_bandwidth = lags + 1;
-  ps.batches = ctx.settings.covariance_batches;
+TrialCovariance covariance_sums(const FitContext& ctx, int lags) {
+  TrialCovariance sums;
+  sums.hac_bandwidth = lags + 1;
+  sums.batches = ctx.settings.covariance_batches;
   const FreeMask free = fit_slots(ctx.settings);
   ValidationSettings vs;
   vs.declared_noise = ctx.settings.declared_noise;
-  ResidualValidator validator(theta_of(state.p),
-                              validation_settings(ctx.window, theta_of(state.p), free, vs));
-  ps.validator = &validator;
-  const PassResult pass = ctx.budget.pass(ctx.window, state.p, ps);
+  sums.validator = [window = ctx.window, free, vs](const Vector6& theta) {
+    return std::make_shared<ResidualValidator>(theta, validation_settings(window, theta, free, vs));
+  };
+  return sums;
+}
+
+CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, FitResult& result) {
+  CovarianceOutcome out;
+  const bool reuse = joint_pass_has_the_sums(ctx, state);
+  const int lags = reuse ? ctx.joint_options.trial_covariance->hac_bandwidth - 1
+                         : newey_west_lags(ctx, state.joint.pass);
+  const TrialCovariance sums = covariance_sums(ctx, lags);
+  const FreeMask free = fit_slots(ctx.settings);
+  PassSettings ps = joint_pass_settings(ctx.settings, state);
+  ps.hac_bandwidth = sums.hac_bandwidth;
+  ps.batches = sums.batches;
+  const std::shared_ptr<ResidualValidator> validator =
+      reuse ? state.joint.validator : sums.validator(theta_of(state.p));
+  ps.validator = validator.get();
+  const PassResult pass = reuse ? state.joint.pass : ctx.budget.pass(ctx.window, state.p, ps);
   result.evaluations = ctx.budget.evaluations();
   if (pass.cancelled) {
     out.stop = StopReason::cancelled;
     return out;
   }
   if (pass.finite) {
-    result.validation = validator.finish();
+    result.validation = validator->finish();
     result.validated = true;
   }
   ParamMatrix white = ParamMatrix::Zero(), hac = ParamMatrix::Zero();

@@ -20,6 +20,7 @@ struct Evaluation {
   Eigen::MatrixXd normal;
   Eigen::VectorXd gradient;
   PassResult pass;
+  std::shared_ptr<ResidualValidator> validator;  // StageOptions::trial_covariance
 };
 
 // The cost of residuals at 1e-12 of each channel's RMS: what rounding leaves on noise-free data
@@ -63,15 +64,47 @@ Eigen::MatrixXd Coordinates::jacobian() const {
   return t;
 }
 
+namespace {
+
+// One pass of a stage at p: a trial's also with `sums` (StageOptions::trial_covariance), whose
+// validator it leaves in `validator`.
+PassResult stage_pass(std::span<const WindowSample> window, const ParamVector& p,
+                      const PassSettings& pass_settings, const TrialCovariance* sums,
+                      Budget& budget, std::shared_ptr<ResidualValidator>& validator) {
+  if (sums == nullptr) return budget.pass(window, p, pass_settings);
+  PassSettings ps = pass_settings;
+  ps.hac_bandwidth = sums->hac_bandwidth;
+  ps.batches = sums->batches;
+  validator = sums->validator(theta_of(p));
+  ps.validator = validator.get();
+  return budget.pass(window, p, ps);
+}
+
+LmSettings lm_settings(std::size_t samples, const PassSettings& pass_settings, int max_iterations,
+                       const StageOptions& options) {
+  LmSettings lm;
+  lm.max_iterations = max_iterations;
+  lm.initial_damping = options.initial_damping;
+  lm.decrement_tolerance = options.decrement_tolerance;
+  lm.observations = static_cast<double>(samples) *
+                    ((pass_settings.weight[0] > 0.0 && !pass_settings.thermal_only ? 1.0 : 0.0) +
+                     (pass_settings.weight[1] > 0.0 ? 1.0 : 0.0));
+  return lm;
+}
+
+}  // namespace
+
 StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c,
                       const PassSettings& pass_settings, int max_iterations, Budget& budget,
-                      const TbarRange& range) {
+                      const TbarRange& range, const StageOptions& options) {
   const double cost_floor = rounding_cost(
       window,
       {pass_settings.thermal_only ? 0.0 : pass_settings.weight[0], pass_settings.weight[1]});
   const Eigen::MatrixXd t = c.jacobian();
+  bool first = true;
   auto evaluate = [&](const Eigen::VectorXd& z) {
     Evaluation e;
+    const bool trial = !std::exchange(first, false);
     if (const StopReason stop = budget.stop(); stop != StopReason::none) {
       e.stop = to_text(stop);
       return e;
@@ -79,7 +112,8 @@ StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c
     const ParamVector p = c.to_p(z);
     // A non-finite θ is a failed step, never a simulation.
     if (!z.allFinite() || !p.allFinite()) return e;
-    e.pass = budget.pass(window, p, pass_settings);
+    e.pass = stage_pass(window, p, pass_settings, trial ? options.trial_covariance : nullptr,
+                        budget, e.validator);
     // An unstable model (negative damping at some T̄ of the window, θ3 or θ5 ≤ 0) counts as not
     // finite: the solver backs off instead of following a diverging simulation.
     e.finite = e.pass.finite && std::isfinite(e.pass.cost) &&
@@ -96,16 +130,13 @@ StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c
     e.gradient = t.transpose() * e.pass.jtwr;
     return e;
   };
-  LmSettings lm;
-  lm.max_iterations = max_iterations;
-  lm.observations = static_cast<double>(window.size()) *
-                    ((pass_settings.weight[0] > 0.0 && !pass_settings.thermal_only ? 1.0 : 0.0) +
-                     (pass_settings.weight[1] > 0.0 ? 1.0 : 0.0));
+  LmSettings lm = lm_settings(window.size(), pass_settings, max_iterations, options);
   lm.cost_floor = cost_floor;
   auto out = levenberg_marquardt<Evaluation>(evaluate, c.start(), lm);
   StageResult r;
   r.p = c.to_p(out.z);
   r.pass = std::move(out.at_z.pass);
+  r.validator = std::move(out.at_z.validator);
   r.iterations = out.iterations;
   r.converged = out.converged;
   r.message = out.message;

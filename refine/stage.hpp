@@ -7,10 +7,13 @@
 #include <algorithm>
 #include <array>
 #include <cstddef>
+#include <functional>
+#include <memory>
 #include <span>
 #include <vector>
 
 #include "refine/budget.hpp"
+#include "refine/levenberg_marquardt.hpp"
 #include "refine/parameters.hpp"
 #include "refine/residual_pass.hpp"
 
@@ -66,9 +69,30 @@ struct Coordinates {
   ParamVector base;
 };
 
+// What a stage's trial passes (each pass but its first, at the point a step reaches) also carry:
+// the covariance's sums and the model validation at the trial's θ (refine/stages.hpp,
+// estimate_covariance). A stage that starts beside its solution (the warm refit) ends on such a
+// pass, which then serves as the covariance's too instead of one more pass.
+struct TrialCovariance {
+  int hac_bandwidth = 0;
+  int batches = 0;
+  // A fresh validator for a trial at θ.
+  std::function<std::shared_ptr<ResidualValidator>(const Vector6& theta)> validator;
+};
+
+// How a stage runs its Levenberg–Marquardt (LmSettings's members of the same names).
+struct StageOptions {
+  double initial_damping = kInitialDamping;
+  double decrement_tolerance = kDecrementTolerance;
+  const TrialCovariance* trial_covariance = nullptr;
+};
+
 struct StageResult {
   ParamVector p = ParamVector::Zero();
   PassResult pass;  // at p
+  // Non-null: `pass` is a trial pass that carried the covariance's sums (StageOptions), and this
+  // validator saw its residuals.
+  std::shared_ptr<ResidualValidator> validator;
   int iterations = 0;
   bool converged = false;
   const char* message = "";  // the solver's
@@ -80,7 +104,7 @@ struct StageResult {
 // failed step.
 StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c,
                       const PassSettings& pass_settings, int max_iterations, Budget& budget,
-                      const TbarRange& range = {});
+                      const TbarRange& range = {}, const StageOptions& options = {});
 
 // Degrees of freedom left in a channel of n samples with p parameters acting on it.
 inline double dof(std::size_t n, std::size_t p) {

@@ -80,6 +80,10 @@ struct CovarianceOutcome {
   TbarRange model_range;               // the model's T̄ over the window at the solution
 };
 CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, FitResult& result);
+// What estimate_covariance's pass carries with Newey–West `lags`, for a stage's trial passes to
+// carry too (StageOptions::trial_covariance): the pass a warm refit's joint stage ends on then
+// serves as the covariance's.
+TrialCovariance covariance_sums(const FitContext& ctx, int lags);
 
 // The verdict on the solution over the T̄ the window saw and the steady T̄ of its largest V² at θ:
 // the first check it fails (model_unstable, fast_pole_unresolved,

@@ -19,6 +19,12 @@ namespace scp::refine {
 // neighbour needs one or two.
 inline constexpr int kWarmIterations = 5;
 
+// The warm refit's convergence: the Gauss–Newton decrement below this fraction of the cost per
+// observation, a step under 0.03 σ of every parameter (the full fit's kDecrementTolerance: 1e-3
+// σ). Its solution is within that of the full fit's, well inside the 0.1 σ a refit must agree to,
+// and the step that reaches it from a converged neighbour is mostly the last one needed.
+inline constexpr double kWarmDecrementTolerance = 1e-3;
+
 struct WarmStart {
   FitSettings settings;  // what the previous fit was made with (cancel and warm cleared)
   bool converged = false;
@@ -36,6 +42,7 @@ struct WarmStart {
   bool input_delay_estimated = false;
   double input_delay_s = 0.0, input_delay_sigma_s = 0.0, input_delay_sigma_inflation = 1.0;
   VoltageInterval voltage_interval = VoltageInterval::before;
+  int hac_lags = 0;  // the previous fit's Newey–West lags (FitResult::hac_lags)
   // The extensions as the fit left them: their coefficients and, for `auto`, which it kept (the
   // warm refit keeps the same model; the choice is made again by the next full fit).
   Extensions extensions;
@@ -69,8 +76,10 @@ FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
 // The joint stage, the covariance and the verdict on a window already prepared
 // (refine/voltage_timing.hpp), from `from`'s solution at the window's first sample, with at most
 // `max_iterations` per round of the noise model: the end of a fit whose start is known. Returns
-// whatever it reached (converged or not, with its residuals where the stage ran).
+// whatever it reached (converged or not, with its residuals where the stage ran). `neighbour`:
+// `from` is a converged neighbour's solution (the warm refit): Gauss–Newton's step first,
+// convergence at kWarmDecrementTolerance, the covariance from the pass that shows it.
 FitResult joint_refit(std::span<const WindowSample> prepared, const WarmStart& from,
-                      const FitSettings& settings, int max_iterations);
+                      const FitSettings& settings, int max_iterations, bool neighbour = false);
 
 }  // namespace scp::refine
