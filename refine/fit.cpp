@@ -151,14 +151,15 @@ FitResult fit_prepared(std::span<const WindowSample> window, const Vector6& thet
 // The full staged fit (without FitSettings::warm).
 FitResult fit_cold(std::span<const WindowSample> window, const Vector6& theta_start,
                    const FitSettings& settings) {
-  const VoltageInterval interval = settings.voltage_interval == VoltageInterval::estimate
-                                       ? choose_voltage_interval(window, theta_start, settings)
-                                       : settings.voltage_interval;
+  const IntervalChoice choice = settings.voltage_interval == VoltageInterval::estimate
+                                    ? weigh_voltage_interval(window, theta_start, settings)
+                                    : IntervalChoice{settings.voltage_interval, IntervalEvidence{}};
   std::vector<WindowSample> storage;
-  FitResult result = fit_prepared(
-      prepare_window(window, settings.voltage_hold, interval, storage, settings.voltage_shape),
-      theta_start, settings);
-  result.voltage_interval = interval;
+  FitResult result = fit_prepared(prepare_window(window, settings.voltage_hold, choice.interval,
+                                                 storage, settings.voltage_shape),
+                                  theta_start, settings);
+  result.voltage_interval = choice.interval;
+  result.voltage_interval_evidence = choice.evidence;
   return result;
 }
 

@@ -187,8 +187,10 @@ struct FitResult {
   // the sandwich of the weighted fit, so what they still contribute is counted in σ.
   std::size_t outliers = 0;
   // The voltage interval the fit used: FitSettings::voltage_interval, or the one `estimate` chose
-  // (before or after).
+  // (before or after), and how far the data decided it: with `estimate` undetermined, θ1..θ4 are
+  // the guessed interval's (refine/voltage_timing.hpp).
   VoltageInterval voltage_interval = VoltageInterval::before;
+  IntervalEvidence voltage_interval_evidence;
   // The nuisance terms and extensions as the fit left them (refine/fit_terms.hpp).
   Nuisance nuisance;
   // FitSettings estimates the sensor's lag, but this window could not tell it from the thermal

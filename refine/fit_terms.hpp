@@ -29,6 +29,20 @@ inline constexpr NameTable<VoltageInterval, 3> kVoltageIntervalNames{
      {VoltageInterval::estimate, "estimate"}}};
 const char* to_text(VoltageInterval interval) noexcept;  // kVoltageIntervalNames
 
+// How far the data decided VoltageInterval::estimate (refine/voltage_timing.hpp). `statistic` is
+// the thermal stage's Schwarz criterion of the interval not chosen minus the chosen one's, net of
+// the price the choice charged `after` (both intervals have the same slots, so this is twice the
+// log-likelihood ratio): the interval is `determined` when it is at least `threshold`, the χ²₁
+// quantile at 0.99 (the other interval then lies outside the likelihood-ratio confidence set of
+// the voltage's one-period shift). Otherwise the window cannot tell the two, and θ1..θ4, whose
+// common scale is a sub-millisecond lag between heating and motion, are only as right as the guess.
+struct IntervalEvidence {
+  bool estimated = false;  // chosen by the data (else declared, and determined by declaration)
+  bool determined = true;
+  double statistic = 0.0;
+  double threshold = 0.0;
+};
+
 // How a voltage read with a first-order hold (estimator::VoltageHold::foh) varied between the
 // rows: linearly (a DAC that ramps from one command to the next) or smoothly (a continuous
 // drive sampled at the rows: V² through the cubic of four rows, refine/voltage_timing.hpp).

@@ -124,6 +124,7 @@ WarmStart warm_start(const FitResult& fit, const FitSettings& settings, const Wi
   w.input_delay_sigma_s = fit.input_delay_sigma_s;
   w.input_delay_sigma_inflation = fit.input_delay_sigma_inflation;
   w.voltage_interval = fit.voltage_interval;
+  w.voltage_interval_evidence = fit.voltage_interval_evidence;
   w.extensions = fit.extensions;
   w.hac_lags = fit.hac_lags;
   return w;
@@ -166,6 +167,7 @@ FitResult joint_refit(std::span<const WindowSample> prepared, const WarmStart& f
   FitResult result;
   result.theta = from.theta;
   result.voltage_interval = from.voltage_interval;
+  result.voltage_interval_evidence = from.voltage_interval_evidence;
   result.samples = prepared.size();
   result.t_begin = prepared.front().t;
   result.t_end = prepared.back().t;

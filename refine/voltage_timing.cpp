@@ -80,12 +80,26 @@ ThermalCriterion thermal_criterion(std::span<const WindowSample> window, const V
 // looks like in T̄ (to first order), not a sensor's.
 constexpr double kShiftLikeLagPeriods = 3.0;
 
+// χ²₁'s quantile at 0.99: IntervalEvidence::threshold.
+constexpr double kIntervalThreshold = 6.6349;
+
+// `after` when `margin` (the criterion's advantage of `after` over `before`, net of any price) is
+// positive, with |margin| as the evidence.
+IntervalChoice decided_by(double margin) {
+  IntervalChoice out;
+  out.interval = margin > 0.0 ? VoltageInterval::after : VoltageInterval::before;
+  out.evidence = {.estimated = true,
+                  .determined = std::abs(margin) >= kIntervalThreshold,
+                  .statistic = std::abs(margin),
+                  .threshold = kIntervalThreshold};
+  return out;
+}
+
 // The interval from the thermal fits with the lag held at 0 and free, each [before, after].
-VoltageInterval pick_interval(const std::array<ThermalCriterion, 2>& held,
-                              const std::array<ThermalCriterion, 2>& free, bool lag_free,
-                              std::span<const WindowSample> window) {
-  const VoltageInterval by_held =
-      held[1].score < held[0].score ? VoltageInterval::after : VoltageInterval::before;
+IntervalChoice pick_interval(const std::array<ThermalCriterion, 2>& held,
+                             const std::array<ThermalCriterion, 2>& free, bool lag_free,
+                             std::span<const WindowSample> window) {
+  const IntervalChoice by_held = decided_by(held[0].score - held[1].score);
   if (!lag_free) return by_held;
   const ThermalCriterion& best_free = free[1].score < free[0].score ? free[1] : free[0];
   if (!(best_free.score < std::min(held[0].score, held[1].score))) return by_held;
@@ -97,14 +111,18 @@ VoltageInterval pick_interval(const std::array<ThermalCriterion, 2>& held,
   if (best_free.lag <= kShiftLikeLagPeriods * period) return by_held;
   // A real lag (tenths of a second): the interval shows only in the second-order term, so
   // `after`, the other convention than the daemon's, has to earn its place like a parameter.
-  return free[1].score + std::log(n) < free[0].score ? VoltageInterval::after
-                                                     : VoltageInterval::before;
+  return decided_by(free[0].score - free[1].score - std::log(n));
 }
 
 }  // namespace
 
 VoltageInterval choose_voltage_interval(std::span<const WindowSample> window,
                                         const Vector6& theta_start, const FitSettings& settings) {
+  return weigh_voltage_interval(window, theta_start, settings).interval;
+}
+
+IntervalChoice weigh_voltage_interval(std::span<const WindowSample> window,
+                                      const Vector6& theta_start, const FitSettings& settings) {
   // A one-period shift of the voltage and a first-order lag of the sensor look alike in T̄ (to
   // O(Δ·τs·T̄'')): with the lag free, `after` with a lag of minus one period fits a record logged
   // `before` about as well, and `before` with a lag of one period one logged `after`. So each

@@ -60,4 +60,13 @@ WindowSample prepared_sample(const WindowSample& prev, const WindowSample& cur,
 VoltageInterval choose_voltage_interval(std::span<const WindowSample> window,
                                         const Vector6& theta_start, const FitSettings& settings);
 
+// choose_voltage_interval's choice and how far the criterion decided it (IntervalEvidence: below
+// its threshold the interval is undetermined, and the fit's θ1..θ4 are a guess's).
+struct IntervalChoice {
+  VoltageInterval interval = VoltageInterval::before;
+  IntervalEvidence evidence;
+};
+IntervalChoice weigh_voltage_interval(std::span<const WindowSample> window,
+                                      const Vector6& theta_start, const FitSettings& settings);
+
 }  // namespace scp::refine

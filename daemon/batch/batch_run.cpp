@@ -314,6 +314,22 @@ std::string refined_heading(const nlohmann::json& s) {
   return line;
 }
 
+// The voltage's interval the fit used, and when it estimated it, how far the data decided it.
+std::string interval_line(const nlohmann::json& r) {
+  std::string out = "voltage interval: " + r.value("voltage_interval", std::string("-"));
+  if (r.contains("voltage_interval_test")) {
+    const nlohmann::json& t = r["voltage_interval_test"];
+    char line[160];
+    std::snprintf(line, sizeof line,
+                  " (estimated: fitted %s, criterion difference %s, threshold %s)",
+                  t.value("fitted", std::string("-")).c_str(),
+                  number_or_dash(t.value("statistic", nlohmann::json()), "%.3g").c_str(),
+                  number_or_dash(t.value("threshold", nlohmann::json()), "%.3g").c_str());
+    out += line;
+  }
+  return out + "\n";
+}
+
 // One estimate's validation (ESTIMATE refined.validation or paper_validation), a line per block:
 // the verdict, the decisive test, fit % and the noise ratio.
 std::string validation_lines(const char* who, const nlohmann::json& v) {
@@ -363,6 +379,7 @@ std::string refined_table(const nlohmann::json& s) {
                 s["paper_biased"].value("thermal", false) ? "yes" : "no",
                 s["best"].get<std::string>().c_str());
   out += line;
+  out += interval_line(r);
   if (r.contains("validation")) out += validation_lines("refined", r["validation"]);
   if (s.contains("paper_validation")) out += validation_lines("paper", s["paper_validation"]);
   if (s.contains("best_reason"))

@@ -31,5 +31,44 @@ TEST(IntervalChoice, ARealSensorLagLeavesAContinuousVoltageBefore) {
   }
 }
 
+// A voltage held by a DAC and logged with the command issued at each row's t (no V_since), the
+// sensor lag free as the daemon fits it.
+refine::IntervalChoice weigh_held_after(const char* noise, unsigned seed) {
+  BenchFile f = default_bench_file();
+  apply_noise_level(noise, f.sim);
+  f.timing = VoltageTiming::dac_after;
+  f.sim.seed = seed;
+  refine::FitSettings s;
+  s.nuisance.sensor_lag.fixed = false;
+  return refine::weigh_voltage_interval(test::window_of(f), test::theta_of(f), s);
+}
+
+// At N1 (0.01 °C) a one-period shift of the voltage is plain in T̄: the interval is found and said
+// to be determined.
+TEST(IntervalChoice, AVoltageLoggedAfterIsDeterminedAtN1) {
+  for (const unsigned seed : {1u, 2u}) {
+    const refine::IntervalChoice c = weigh_held_after("N1", seed);
+    EXPECT_EQ(c.interval, refine::VoltageInterval::after) << "seed " << seed;
+    EXPECT_TRUE(c.evidence.estimated);
+    EXPECT_TRUE(c.evidence.determined) << "seed " << seed << ": statistic " << c.evidence.statistic
+                                       << " below " << c.evidence.threshold;
+  }
+}
+
+// At N3 (0.1 °C) θ5, θ6 and T̄0 absorb the shift, and the criterion's difference falls to the
+// order of one: a wrong choice must then be published as undetermined (never as determined, which
+// would let `best` recommend θ1..θ4 tens of per cent off). Seeds 1 and 8 of scripts/deviations'
+// paper N3 held_after cell took `before` before the interval's evidence was published.
+TEST(IntervalChoice, AWrongIntervalIsNeverDetermined) {
+  for (const unsigned seed : {1u, 2u, 8u}) {
+    const refine::IntervalChoice c = weigh_held_after("N3", seed);
+    if (c.interval != refine::VoltageInterval::after) {
+      EXPECT_FALSE(c.evidence.determined)
+          << "seed " << seed << ": statistic " << c.evidence.statistic;
+    }
+    EXPECT_EQ(c.evidence.determined, c.evidence.statistic >= c.evidence.threshold);
+  }
+}
+
 }  // namespace
 }  // namespace scp::tools::benchsim

@@ -17,7 +17,7 @@ using nlohmann::json;
 
 TEST(Render, VersionErrorAckWatchAreExactLines) {
   EXPECT_EQ(render_version("1.2.3"),
-            "{\"class\":\"VERSION\",\"proto_major\":1,\"proto_minor\":8,\"release\":\"1.2.3\"}\n");
+            "{\"class\":\"VERSION\",\"proto_major\":1,\"proto_minor\":9,\"release\":\"1.2.3\"}\n");
   EXPECT_EQ(render_error("bad \"x\""), "{\"class\":\"ERROR\",\"message\":\"bad \\\"x\\\"\"}\n");
   EXPECT_EQ(render_ack("reset", true, "done"),
             "{\"class\":\"ACK\",\"message\":\"done\",\"ok\":true,\"request\":\"reset\"}\n");
@@ -314,6 +314,42 @@ TEST(Render, BestNamesOnlyAnEstimateWhoseValidationPassed) {
   r.validated = false;  // a converged fit nobody validated is not recommended either
   r.paper_validation.mechanical.verdict = scp::refine::Verdict::kAdequate;
   EXPECT_EQ(json::parse(render_estimate(s.estimate, &r, 12.5))["best"], "paper");
+}
+
+// Issue 28: a voltage interval the fit estimated but the window could not tell is published as
+// `undetermined` (with the criterion's evidence), and `best` keeps off the refined estimate (its
+// θ1..θ4 are a guess's) with the remedy in the reason; one the data decided changes nothing.
+TEST(Render, AnUndeterminedVoltageIntervalIsSaidAndNotRecommended) {
+  const PublishedState s = test::sample_state();
+  refine::RefinedView r = sample_refined();
+  r.voltage_interval = scp::refine::VoltageInterval::after;
+  r.voltage_interval_evidence = {
+      .estimated = true, .determined = true, .statistic = 40.0, .threshold = 6.6};
+  json j = json::parse(render_estimate(s.estimate, &r, 12.5));
+  EXPECT_EQ(j["best"], "refined");
+  EXPECT_EQ(j["refined"]["voltage_interval"], "after");
+  EXPECT_EQ(j["refined"]["voltage_interval_test"]["fitted"], "after");
+  EXPECT_EQ(j["refined"]["voltage_interval_test"]["determined"], true);
+
+  r.voltage_interval_evidence = {
+      .estimated = true, .determined = false, .statistic = 0.5, .threshold = 6.6};
+  j = json::parse(render_estimate(s.estimate, &r, 12.5));
+  EXPECT_EQ(j["best"], "paper");
+  EXPECT_EQ(j["refined"]["voltage_interval"], "undetermined");
+  EXPECT_EQ(j["refined"]["voltage_interval_test"]["fitted"], "after");
+  EXPECT_DOUBLE_EQ(j["refined"]["voltage_interval_test"]["statistic"].get<double>(), 0.5);
+  const std::string reason = j["best_reason"].get<std::string>();
+  EXPECT_NE(reason.find("refine.voltage_interval"), std::string::npos) << reason;
+  EXPECT_NE(reason.find("V_since"), std::string::npos) << reason;
+  const json status = json::parse(render_status(s, ServerInfo{"0.1.0", "sim", "", ""}, &r));
+  EXPECT_EQ(status["refine"]["voltage_interval"], "undetermined");
+
+  r.paper_validation.mechanical.verdict = scp::refine::Verdict::kStructure;
+  EXPECT_EQ(json::parse(render_estimate(s.estimate, &r, 12.5))["best"], "none");
+  r.voltage_interval_evidence = {};  // declared: nothing to doubt
+  j = json::parse(render_estimate(s.estimate, &r, 12.5));
+  EXPECT_EQ(j["best"], "refined");
+  EXPECT_FALSE(j["refined"].contains("voltage_interval_test"));
 }
 
 // The metrics carry each estimate's verdict per block as a state set, its fit %, and which

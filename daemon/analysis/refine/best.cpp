@@ -61,6 +61,18 @@ std::string block_advice(const char* block, const BlockReport& b, const Validati
 
 }  // namespace
 
+std::string interval_advice(const RefinedView& v) {
+  const scp::refine::IntervalEvidence& e = v.voltage_interval_evidence;
+  char text[320];
+  std::snprintf(text, sizeof text,
+                "the voltage's interval is undetermined: the window cannot tell whether a row's V "
+                "drove the interval before or after its sample (criterion difference %.3g, below "
+                "%.3g), and the refined θ1..θ4 depend on it (the fit took '%s'); declare "
+                "refine.voltage_interval or record a V_since column",
+                e.statistic, e.threshold, scp::refine::to_text(v.voltage_interval));
+  return text;
+}
+
 const char* best_name(Best best) noexcept {
   switch (best) {
     case Best::refined:
@@ -94,7 +106,9 @@ std::string failure_advice(const ValidationReport& report) {
 
 Best best_of(const RefinedView* v, double now_t) noexcept {
   if (v == nullptr || !v->valid) return Best::paper;
-  if (refined_is_best(*v, now_t) && v->validated && passed(v->validation)) return Best::refined;
+  if (refined_is_best(*v, now_t) && v->validated && passed(v->validation) &&
+      !interval_undetermined(*v))
+    return Best::refined;
   return v->paper_validated && passed(v->paper_validation) ? Best::paper : Best::none;
 }
 
@@ -114,6 +128,8 @@ BestChoice best_estimate(const RefinedView* v, double now_t) {
     why = "the refined fit is not validated";
   } else if (!passed(v->validation)) {
     why = "refined " + failure_advice(v->validation);
+  } else if (interval_undetermined(*v)) {
+    why = interval_advice(*v);
   } else {
     return {Best::refined, ""};
   }

@@ -8,6 +8,7 @@
 #include <cstring>
 
 #include "common/clock.hpp"
+#include "daemon/analysis/refine/best.hpp"
 
 namespace scp::daemon::refine {
 
@@ -66,6 +67,12 @@ void RefineWorker::stop() noexcept {
   if (thread_.joinable()) thread_.join();
 }
 
+void RefineWorker::note_interval(const RefinedView& view) {
+  if (interval_noted_ || !interval_undetermined(view)) return;
+  interval_noted_ = true;
+  spdlog::warn("refinement: {}", interval_advice(view));
+}
+
 void RefineWorker::run() noexcept {
   try {
     lower_priority();
@@ -83,6 +90,7 @@ void RefineWorker::run() noexcept {
       spdlog::debug("refinement: fit {} of [{:.1f}, {:.1f}] s ({} samples) in {:.3f} s: {} ({})",
                     view.fits, view.t_begin, view.t_end, view.samples, view.duration_s,
                     view.converged ? "converged" : "not converged", view.message.data());
+      note_interval(view);
     }
   } catch (const std::exception& e) {
     // Only the solver's allocations can throw here; the loop and the paper law go on without it.

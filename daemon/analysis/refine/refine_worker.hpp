@@ -39,6 +39,8 @@ class RefineWorker {
 
  private:
   void run() noexcept;
+  // Says once in the journal that the voltage's interval is undetermined, and the remedy.
+  void note_interval(const RefinedView& view);
 
   HandOffRing& ring_;
   const rt::Seqlock<PublishedState>& published_;
@@ -46,6 +48,7 @@ class RefineWorker {
   Refiner refiner_;
   FitObserver* observer_;
   std::atomic<bool> stop_{false};
+  bool interval_noted_ = false;  // note_interval has said it
   std::thread thread_;
 };
 

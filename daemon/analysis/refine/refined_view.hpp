@@ -78,6 +78,9 @@ struct RefinedView {
   // them, and the model validation of the latest fit (refine/validation.hpp): the refined fit's
   // own, and the paper law's θ̂ simulated through the same window (paper_validation.hpp).
   scp::refine::VoltageInterval voltage_interval = scp::refine::VoltageInterval::before;
+  // Undetermined (estimated, not determined): the window could not tell the intervals apart, and
+  // `best` keeps off the refined estimate (best.hpp).
+  scp::refine::IntervalEvidence voltage_interval_evidence;
   scp::refine::Nuisance nuisance;
   scp::refine::Extensions extensions;
   scp::refine::HeaterResistance heater;  // measured: the thermal input was the measured power
@@ -86,6 +89,12 @@ struct RefinedView {
   bool paper_validated = false;
   scp::refine::ValidationReport paper_validation;
 };
+
+// Whether the latest fit estimated the voltage's interval and the window could not tell it
+// (refine::IntervalEvidence): its θ1..θ4 are then a guess's.
+inline bool interval_undetermined(const RefinedView& v) noexcept {
+  return v.voltage_interval_evidence.estimated && !v.voltage_interval_evidence.determined;
+}
 
 // Whether the refined fit is current at loop time `now_t`: its latest fit converged, is at most 3
 // intervals old and every σ is finite. Whether it is recommended also takes its validation

@@ -88,6 +88,7 @@ void copy_result(const scp::refine::FitResult& r, RefinedView& v) noexcept {
   v.warm = r.warm;
   v.warm_fallback = r.warm_fallback;
   v.voltage_interval = r.voltage_interval;
+  v.voltage_interval_evidence = r.voltage_interval_evidence;
   v.nuisance = r.nuisance;
   v.extensions = r.extensions;
   v.heater = r.heater;

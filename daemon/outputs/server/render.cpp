@@ -169,6 +169,19 @@ void put_bench_terms(json& o, const refine::RefinedView& r) {
   }
 }
 
+// "voltage_interval" (before, after, or undetermined where the data could not tell) and, when the
+// fit estimated it, "voltage_interval_test": what it fitted with and the criterion's evidence.
+void put_voltage_interval(json& o, const refine::RefinedView& r) {
+  const bool undetermined = refine::interval_undetermined(r);
+  o["voltage_interval"] = undetermined ? "undetermined" : scp::refine::to_text(r.voltage_interval);
+  const scp::refine::IntervalEvidence& e = r.voltage_interval_evidence;
+  if (!e.estimated) return;
+  json test = {{"fitted", scp::refine::to_text(r.voltage_interval)}, {"determined", !undetermined}};
+  put_finite(test, "statistic", e.statistic);
+  put_finite(test, "threshold", e.threshold);
+  o["voltage_interval_test"] = test;
+}
+
 // The members the refinement adds to ESTIMATE: "paper_biased", "best", "best_reason" and, once a
 // fit exists, "refined" and "paper_validation" (docs/protocol.md). `refined` may be null.
 void put_refinement(json& out, const EstimateView& estimate, const refine::RefinedView* refined,
@@ -213,7 +226,7 @@ void put_refinement(json& out, const EstimateView& estimate, const refine::Refin
   o["warm"] = r.warm;
   if (!r.warm && r.warm_fallback != scp::refine::WarmFallback::not_requested)
     o["warm_fallback"] = scp::refine::to_text(r.warm_fallback);
-  o["voltage_interval"] = scp::refine::to_text(r.voltage_interval);
+  put_voltage_interval(o, r);
   if (r.validated) o["validation"] = validation_json(r.validation);
   put_bench_terms(o, r);
   const std::string_view message{r.message.data(), strnlen(r.message.data(), r.message.size())};
@@ -368,7 +381,10 @@ std::string render_status(const PublishedState& state, const ServerInfo& info,
               {"warm_fits", refined->warm_fits},
               {"windows", refined->windows},
               {"handoff_dropped", state.handoff_dropped}};
-    if (refined->valid) put_finite(r, "last_fit_duration_s", refined->duration_s);
+    if (refined->valid) {
+      put_finite(r, "last_fit_duration_s", refined->duration_s);
+      if (refine::interval_undetermined(*refined)) r["voltage_interval"] = "undetermined";
+    }
     out["refine"] = r;
   }
   if (last_command != nullptr) put_last_command(out, *last_command);
