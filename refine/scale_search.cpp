@@ -22,11 +22,16 @@ std::span<const WindowSample> search_prefix(std::span<const WindowSample> window
   return window.first(prefix);
 }
 
-// (b1): θ1, θ2, θ4 (θ3 held), x0, ẋ0 on x at kQuasiStatic × the start's scale.
+// (b1): θ1, θ2, θ4 (θ3 held), x0, ẋ0 and, when estimated, the displacement's zero, on x at
+// kQuasiStatic × the start's scale.
 StopReason fit_ratios(FitContext& ctx, FitState& state, std::span<const WindowSample> head) {
   state.p.head<kMechanicalSize>() *= kQuasiStatic;
   FreeMask ratios{};
   for (const int i : {kDamping, kDampingSlope, kThermalForce, kX0, kXdot0}) ratios[i] = true;
+  // A sensor's zero held at its start here is an offset of x that only a displacement from rest
+  // can explain: x0 takes it, and the ratios that make it decay slowly enough are wrong (a 1 mm
+  // zero at N3 stalled the fit at a fast pole). The warm refit does not come here.
+  ratios[kXZeroSlot] = !ctx.settings.nuisance.x_zero.fixed;
   // The stiffness's softening is a ratio too (it scales with θ3, not with the inertia), and a
   // scale placed without it on data that need it runs away (the paper's model there is 99 % off).
   ratios[kStiffnessSofteningSlot] =

@@ -404,8 +404,10 @@ void declare_refine_bench(Binder& refine, RefineSettings& out) {
       kVoltageIntervals,
       "which interval a row's voltage was applied over: `before` its sample (the "
       "daemon's drivers and recordings, V_since), `after` it (a log writing the command "
-      "issued at t), `estimate` (fit both, keep the better). `auto`: before, except "
-      "estimate for a replayed file (--replay or driver.type: replay) without a V_since column");
+      "issued at t), `estimate` (fit both, keep the better; when the data cannot tell them "
+      "apart, refined.voltage_interval reads `undetermined` and `best` keeps off the refined "
+      "estimate). `auto`: before, except estimate for a replayed file (--replay or "
+      "driver.type: replay) without a V_since column");
   refine.choice("voltage_shape", out.voltage_shape, scp::refine::VoltageShape::smooth,
                 scp::refine::kVoltageShapeNames,
                 "with estimator.voltage_hold foh, how the voltage varied between the rows: "
