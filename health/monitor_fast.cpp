@@ -215,6 +215,15 @@ void HealthMonitor::fast_alarm(const ScoreBlock& block) {
   // Which parameter: from the blocks after the onset's, with the nuisance (naming.hpp).
   const ChangeEvidence evidence = weigh_change(recent_blocks_, naming_start(onset),
                                                reference_at(onset).theta, naming_settings());
+  // An alarm in the block after the change's has no block yet that lies wholly after it, and
+  // would name every parameter as a candidate: it waits for one block (the CUSUM stays above h
+  // after a real change), so that the `changed` event can name what the data already separate.
+  const bool no_evidence = evidence.outputs[0].samples == 0 && evidence.outputs[1].samples == 0;
+  if (no_evidence && !alarm_waited_) {
+    alarm_waited_ = true;
+    return;
+  }
+  alarm_waited_ = false;
   const ChangePoint c = fast_change(evidence, sum_since(onset), onset, block.t_end);
   if (!c.definite) {
     // Named later, from the residuals since the onset against the reference it departed from.
