@@ -330,7 +330,7 @@ void HealthMonitor::start_segment(double onset, double t) {
   std::erase_if(history_, [&](const WindowEstimate& h) { return h.t_begin < segment_start_; });
   have_last_test_ = false;
   for (auto& c : cusums_) c.reset();
-  alarm_waited_ = false;
+  alarm_waits_ = 0;
   innovation_.clear();
   accumulator_.restart();
   recent_blocks_.clear();

@@ -246,7 +246,7 @@ class HealthMonitor {
   Reference reference_;
   TrendFit reference_fit_;  // reference_at() extrapolates its slope
   std::array<TwoSidedCusum, kParams> cusums_;
-  bool alarm_waited_ = false;  // an alarm waits one block for evidence to name it (fast_alarm)
+  int alarm_waits_ = 0;  // blocks an alarm has waited for evidence to name it (fast_alarm)
   // The blocks' scores with the reference's error estimated out (the CUSUMs' input).
   InnovationScores innovation_;
   BlockAccumulator accumulator_;

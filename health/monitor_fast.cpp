@@ -21,6 +21,8 @@ constexpr double kRampSearchSeconds = 600.0;
 // both shapes alike, and the step is the fast detector's design.
 constexpr double kRampMargin = 10.83;
 constexpr double kRampMinEvidenceSeconds = 20.0;
+// How many blocks a fast alarm may wait for a block after its onset to name it from.
+constexpr int kAlarmWaitBlocks = 2;
 
 }  // namespace
 
@@ -194,7 +196,8 @@ void HealthMonitor::fast_alarm(const ScoreBlock& block) {
   int channel = 0;
   for (int i = 1; i < kParams; ++i)
     if (cusums_[i].ratio() > cusums_[channel].ratio()) channel = i;
-  double onset = step_onset(channel, cusums_[channel].onset());
+  const double cusum_onset = cusums_[channel].onset();
+  double onset = step_onset(channel, cusum_onset);
   const auto sum_since = [this](double from) {
     ScoreBlock sum;
     for (const auto& b : recent_blocks_)
@@ -212,18 +215,21 @@ void HealthMonitor::fast_alarm(const ScoreBlock& block) {
     return;
   }
   if (late_drift(iso.parameter, onset)) return;
-  // Which parameter: from the blocks after the onset's, with the nuisance (naming.hpp).
-  const ChangeEvidence evidence = weigh_change(recent_blocks_, naming_start(onset),
+  // Which parameter: from the blocks after the onset's, with the nuisance (naming.hpp). After
+  // the CUSUM's change point's, not the step fit's: a thermal change's z grows with T̄'s
+  // response over seconds, and the step fit's onset moves later with every block.
+  const ChangeEvidence evidence = weigh_change(recent_blocks_, naming_start(cusum_onset),
                                                reference_at(onset).theta, naming_settings());
-  // An alarm in the block after the change's has no block yet that lies wholly after it, and
-  // would name every parameter as a candidate: it waits for one block (the CUSUM stays above h
-  // after a real change), so that the `changed` event can name what the data already separate.
+  // An alarm in the block after the change's has no block yet that lies wholly after its onset,
+  // and would name every parameter as a candidate: it waits for such a block (the CUSUM stays
+  // above h after a real change; the onset may move by a block meanwhile), so that the `changed`
+  // event can name what the data already separate.
   const bool no_evidence = evidence.outputs[0].samples == 0 && evidence.outputs[1].samples == 0;
-  if (no_evidence && !alarm_waited_) {
-    alarm_waited_ = true;
+  if (no_evidence && alarm_waits_ < kAlarmWaitBlocks) {
+    ++alarm_waits_;
     return;
   }
-  alarm_waited_ = false;
+  alarm_waits_ = 0;
   const ChangePoint c = fast_change(evidence, sum_since(onset), onset, block.t_end);
   if (!c.definite) {
     // Named later, from the residuals since the onset against the reference it departed from.
