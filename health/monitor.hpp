@@ -4,11 +4,12 @@
 // loop times, refined windows and residual samples, and reads a report and a list of events.
 //
 // Three detectors share one false-alarm budget (HealthSettings::false_alarm_days, a third each):
-// - fast: a two-sided CUSUM per parameter on the residuals' efficient scores (score_blocks.hpp),
-//   thresholds from Siegmund's ARL (cusum.hpp); at an alarm its change-point estimate is the
-//   onset, and the parameter is named once the residuals after it separate it from the other
-//   candidates (naming.hpp) or the first window after the onset does (an event `named`);
-//   until then the change carries its candidates.
+// - fast: a two-sided CUSUM per parameter on the residuals' efficient scores (score_blocks.hpp)
+//   with the reference's error estimated out by the residuals (their innovations,
+//   innovation.hpp), thresholds from Siegmund's ARL (cusum.hpp); at an alarm its change-point
+//   estimate is the onset, and the parameter is named once the residuals after it separate it
+//   from the other candidates (naming.hpp) or the first window after the onset does (an event
+//   `named`); until then the change carries its candidates.
 // - sure: each refined window against the reference, a Wald χ² per block and a z per parameter
 //   (wald.hpp), thresholds from the crossing rate of the overlapping windows' χ² process
 //   (scan_threshold.hpp).
