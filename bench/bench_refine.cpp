@@ -10,6 +10,8 @@
 #include "refine/fit.hpp"
 #include "refine/residual_pass.hpp"
 #include "refine/sensitivities.hpp"
+#include "refine/validate_fit.hpp"
+#include "refine/validation.hpp"
 #include "refine/warm_start.hpp"
 #include "tests/refine/light_stiff.hpp"
 #include "tests/refine/record.hpp"
@@ -135,6 +137,30 @@ void BM_PassCostOnly(benchmark::State& state) {
                          benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 BENCHMARK(BM_PassCostOnly)->Unit(benchmark::kMillisecond);
+
+// The pass a fit ends with (refine/solution_covariance.cpp): with sensitivities, the Newey–West
+// long-run sums (25 lags, what the automatic choice takes for white N1 residuals at 300 s), the 20
+// batches of the batch-means check and the model validation fed every sample; the daemon's
+// nuisance terms free.
+void BM_PassForCovariance(benchmark::State& state) {
+  const auto& w = window();
+  FreeMask free = free_slots({});
+  free[kXZeroSlot] = free[kAmbientOffsetSlot] = free[kAmbientDriftSlot] = true;
+  PassSettings ps;
+  ps.weight = {1e14, 1e6};
+  ps.hac_bandwidth = 25;
+  ps.batches = 20;
+  for (auto _ : state) {
+    ResidualValidator validator(truth(), validation_settings(w, truth(), free, {}));
+    ps.validator = &validator;
+    benchmark::DoNotOptimize(residual_pass(w, truth_p(), ps));
+    benchmark::DoNotOptimize(validator.finish());
+  }
+  state.counters["ns_per_sample"] =
+      benchmark::Counter(static_cast<double>(w.size()) * state.iterations(),
+                         benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_PassForCovariance)->Unit(benchmark::kMillisecond);
 
 // The joint stage for Eigen's lmder: weighted residuals (x and T̄ of every sample) and their
 // dense Jacobian, 2N × 9.

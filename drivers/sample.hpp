@@ -23,6 +23,9 @@ struct Sample {
   // before that instant the previous sample's voltage was applied. −∞ (the default): the voltage
   // was applied over the whole interval, as a DAC switching at sample instants does.
   double voltage_since = -std::numeric_limits<double>::infinity();
+  // A, the heater's current at t, driven by `voltage` (the DAQ's measurement); NaN when the device
+  // does not measure it. Measured, the refinement's thermal input is the power V·I.
+  double current = kNotMeasured;
 };
 
 }  // namespace scp::drivers

@@ -68,6 +68,7 @@ StopReason fit_thermal(FitContext& ctx, FitState& state) {
     state.noise.tbar =
         std::max(r.pass.rss[1] / dof(ctx.window.size(), c.index.size()), ctx.variance_floor[1]);
     state.range = {r.pass.tbar_min, r.pass.tbar_max};
+    state.thermal = r.pass;
   }
   return r.stopped ? ctx.budget.stop() : StopReason::none;
 }

@@ -16,6 +16,7 @@
 #include <cmath>
 #include <vector>
 
+#include "refine/heater_power.hpp"
 #include "refine/stages.hpp"
 #include "refine/voltage_timing.hpp"
 #include "refine/warm_start.hpp"
@@ -55,6 +56,7 @@ void take_progress(const FitContext& ctx, const FitState& state, FitResult& resu
   result.nuisance.ambient_offset = {!n.ambient_offset.fixed, state.p[kAmbientOffsetSlot], 0.0};
   result.nuisance.ambient_drift = {!n.ambient_drift.fixed, state.p[kAmbientDriftSlot], 0.0};
   result.nuisance.sensor_lag = {!n.sensor_lag.fixed, state.p[kSensorLagSlot], 0.0};
+  result.sensor_lag_held = state.sensor_lag_held;
   for (const ExtensionSlot& e : kExtensionTable) {
     ExtensionEstimate& out = result.extensions.*e.estimate;
     out.mode = ctx.settings.extensions.*e.mode;
@@ -119,10 +121,11 @@ FitResult fit_staged(std::span<const WindowSample> window, const Vector6& theta_
 
   FitContext ctx(window, settings);
   StopReason stop = fit_thermal(ctx, state);
+  if (stop == StopReason::none) stop = hold_undetermined_lag(ctx, state);
   if (stop == StopReason::none) stop = fit_input_delay(ctx, state);
   if (stop == StopReason::none) {
     start_with_positive_damping(ctx, state);
-    stop = search_scale(ctx, state);
+    if (settings.search_scale) stop = search_scale(ctx, state);
   }
   if (stop == StopReason::none) stop = fit_mechanical(ctx, state);
   if (stop == StopReason::none) stop = fit_joint(ctx, state);
@@ -159,6 +162,27 @@ FitResult fit_cold(std::span<const WindowSample> window, const Vector6& theta_st
   return result;
 }
 
+// fit() on a checked window.
+FitResult fit_checked(std::span<const WindowSample> window, const Vector6& theta_start,
+                      const FitSettings& settings) {
+  if (settings.warm == nullptr) return fit_cold(window, theta_start, settings);
+  FitResult warm = refit(window, *settings.warm, settings);
+  if (warm.warm) return warm;
+  // A seed that is the θ of a converged fit of an overlapping window (as the daemon hands it over
+  // with a warm start) has the common scale of θ1..θ4 already, when only its joint stage fell
+  // short of converging within the warm refit's iterations.
+  FitSettings full = settings;
+  if (warm.warm_fallback == WarmFallback::not_converged && settings.warm->converged &&
+      theta_start == settings.warm->theta)
+    full.search_scale = false;
+  // The warm attempt's work counts in what the fit cost.
+  FitResult result = fit_cold(window, theta_start, full);
+  result.warm_fallback = warm.warm_fallback;
+  result.iterations += warm.iterations;
+  result.evaluations += warm.evaluations;
+  return result;
+}
+
 }  // namespace
 
 FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
@@ -168,14 +192,18 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
     result.theta = theta_start;
     return ended(result, bad);
   }
-  if (settings.warm == nullptr) return fit_cold(window, theta_start, settings);
-  FitResult warm = refit(window, *settings.warm, settings);
-  if (warm.warm) return warm;
-  // The warm attempt's work counts in what the fit cost.
-  FitResult result = fit_cold(window, theta_start, settings);
-  result.warm_fallback = warm.warm_fallback;
-  result.iterations += warm.iterations;
-  result.evaluations += warm.evaluations;
+  if (!measures_current(window)) return fit_checked(window, theta_start, settings);
+  // The measured power carries R(T̄): the resistance's extension has nothing left to model.
+  FitSettings power = settings;
+  power.extensions.resistance_tempco = ExtensionMode::off;
+  WarmStart warm;  // the previous fit's settings as this one's, so that the warm start applies
+  if (settings.warm != nullptr) {
+    warm = *settings.warm;
+    warm.settings.extensions.resistance_tempco = ExtensionMode::off;
+    power.warm = &warm;
+  }
+  FitResult result = fit_checked(window, theta_start, power);
+  publish_measured_power(window, result);
   return result;
 }
 

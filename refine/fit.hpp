@@ -50,6 +50,10 @@ struct WindowSample {
   // quadratic through the interval's ends and middle (refine/voltage_timing.hpp takes it from a
   // cubic through four rows of a continuous voltage). NaN: the chord's, V linear.
   double voltage_mid = std::numeric_limits<double>::quiet_NaN();
+  // A, the heater's current at t (the DAQ's measurement, driven by the voltage over the interval
+  // ending at t), NaN when not measured. Measured in every sample of a window: the thermal input
+  // is the measured power V·I (refine/heater_power.hpp).
+  double current = std::numeric_limits<double>::quiet_NaN();
 };
 
 // The model's state at the window's first sample: x, ẋ, T̄.
@@ -128,6 +132,12 @@ struct FitSettings {
   // the full staged fit from `theta_start` when the warm start does not apply or does not
   // converge (FitResult::warm, warm_fallback). Not part of what a warm start compares.
   const WarmStart* warm = nullptr;
+  // false: `theta_start`'s common scale of θ1..θ4 is a converged fit's of an overlapping window,
+  // and the full fit takes it as it is instead of searching for it (stage (b), whose passes run
+  // at up to 30 times the start's stiffness). fit() clears it itself for the full fit a warm
+  // refit gives way to when its joint stage did not converge (WarmFallback::not_converged) from
+  // a converged warm start and `theta_start` is its θ. Not part of what a warm start compares.
+  bool search_scale = true;
 };
 
 // √χ²₂(0.99): the radius within which 99 % of a two-channel Gaussian residual falls.
@@ -181,7 +191,12 @@ struct FitResult {
   VoltageInterval voltage_interval = VoltageInterval::before;
   // The nuisance terms and extensions as the fit left them (refine/fit_terms.hpp).
   Nuisance nuisance;
+  // FitSettings estimates the sensor's lag, but this window could not tell it from the thermal
+  // block's other terms, and the fit held it at its prior (refine/lag_hold.hpp;
+  // nuisance.sensor_lag then reads not estimated).
+  bool sensor_lag_held = false;
   Extensions extensions;
+  HeaterResistance heater;
   // The model validation of the final pass (refine/validation.hpp); `validated` once it ran.
   ValidationReport validation;
   bool validated = false;

@@ -22,7 +22,9 @@ struct FitContext {
         budget(w, s) {}
 
   std::span<const WindowSample> window;
-  const FitSettings& settings;
+  // The caller's settings, but for a sensor's lag the window cannot determine, which the fit then
+  // holds (hold_undetermined_lag).
+  FitSettings settings;
   int max_iterations;                    // of each Levenberg–Marquardt run
   std::array<double, 2> variance_floor;  // x, T̄
   Budget budget;                         // every pass of the fit counts against it
@@ -51,6 +53,8 @@ struct FitState {
   NoiseVariances noise;
   TbarRange range;                     // the model's T̄ over the window, from the thermal stage
   InputDelayEstimate delay;            // set once estimated (ok)
+  PassResult thermal;                  // the thermal stage's last pass (at p, lag free or held)
+  bool sensor_lag_held = false;        // the lag is estimated by FitSettings but held here
   StageResult joint;                   // the joint stage's last run
   double sample_timing_sigma_s = 0.0;  // set once the joint stage has run its rounds
 };

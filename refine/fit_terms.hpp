@@ -123,6 +123,15 @@ struct Extensions {
   ExtensionEstimate resistance_tempco, stiffness_softening, cooling_tempco;
 };
 
+// With the heater's current measured (refine/heater_power.hpp): R = V/I regressed on the true T̄,
+// R = R0·(1 + ρ·T̄), and the resistance the fit's heating input was scaled by.
+struct HeaterResistance {
+  bool measured = false;  // the window's measured power drove the thermal block
+  double reference_ohm = 0.0;
+  double r0_ohm = 0.0, r0_sigma_ohm = 0.0;
+  double rho = 0.0, rho_sigma = 0.0;  // 1/°C
+};
+
 // The coefficients a fit's model ran with (0 for an extension it did not keep).
 inline Tempcos tempcos_of(const Extensions& e) noexcept {
   const auto value = [](const ExtensionEstimate& x) { return x.kept ? x.value : 0.0; };

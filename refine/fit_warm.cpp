@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <vector>
 
+#include "refine/lag_hold.hpp"
 #include "refine/model_simulator.hpp"
 #include "refine/stages.hpp"
 #include "refine/voltage_timing.hpp"
@@ -98,6 +99,7 @@ WarmStart warm_start(const FitResult& fit, const FitSettings& settings, const Wi
   w.nuisance = {fit.nuisance.x_zero.value, fit.nuisance.ambient_offset.value,
                 fit.nuisance.ambient_drift.value};
   w.sensor_lag = fit.nuisance.sensor_lag.value;
+  w.sensor_lag_held = fit.sensor_lag_held;
   w.noise_variance = fit.noise_sigma.cwiseProduct(fit.noise_sigma);
   w.timing_variance = fit.sample_timing_sigma_s * fit.sample_timing_sigma_s;
   w.input_delay_estimated = fit.input_delay_estimated;
@@ -153,7 +155,9 @@ FitResult joint_refit(std::span<const WindowSample> prepared, const WarmStart& f
   ctx.max_iterations = std::min(ctx.max_iterations, max_iterations);
   FitState state = shifted_state(prepared, from, settings);
   if (state.delay.ok) ctx.budget.set_input_delay(state.delay.delay);
-  const StopReason stop = fit_joint(ctx, state);
+  StopReason stop =
+      from.sensor_lag_held ? judge_held_lag(ctx, state, from.sensor_lag) : StopReason::none;
+  if (stop == StopReason::none) stop = fit_joint(ctx, state);
   if (stop == StopReason::none && !state.joint.converged) {
     result.iterations = state.iterations;
     result.evaluations = ctx.budget.evaluations();

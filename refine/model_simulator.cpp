@@ -39,11 +39,7 @@ int pieces_between(const WindowSample& prev, const WindowSample& cur, Piece out[
 }
 
 int substeps(const Vector6& theta, double tbar, double tau, double kappa) noexcept {
-  const double rho = std::abs(theta[kDamping] + theta[kDampingSlope] * tbar) +
-                     std::sqrt(std::abs(theta[kStiffness] * (1.0 - kappa * tbar)));
-  const double n = std::ceil(tau * rho / kMaxStiffnessPerSubstep);
-  if (!(n > 1.0)) return 1;
-  return n < 1e5 ? static_cast<int>(n) : 100000;
+  return SubstepRule(theta, kappa)(tbar, tau);
 }
 
 ThermalPiece thermal_piece(double theta5, double tau) noexcept {

@@ -20,6 +20,7 @@
 // one step.
 
 #include <Eigen/Core>
+#include <cmath>
 #include <span>
 
 #include "refine/fit.hpp"
@@ -96,6 +97,30 @@ ThermalPiece thermal_piece(double theta5, double tau) noexcept;
 // `kappa`: the stiffness's softening (Tempcos), which moves ρ(A) with T̄.
 int substeps(const Vector6& theta, double tbar, double tau, double kappa = 0.0) noexcept;
 inline constexpr double kMaxStiffnessPerSubstep = 1.5;  // the τ·ρ(A) bound of substeps()
+
+// substeps() for one θ and κ, asked once per piece of a pass: √|θ3| taken once where the
+// stiffness does not soften with T̄ (κ = 0), the same bits as substeps().
+class SubstepRule {
+ public:
+  SubstepRule(const Vector6& theta, double kappa) noexcept
+      : damping_(theta[kDamping]),
+        slope_(theta[kDampingSlope]),
+        stiffness_(theta[kStiffness]),
+        kappa_(kappa),
+        root_(std::sqrt(std::abs(theta[kStiffness]))) {}
+
+  int operator()(double tbar, double tau) const noexcept {
+    const double root =
+        kappa_ == 0.0 ? root_ : std::sqrt(std::abs(stiffness_ * (1.0 - kappa_ * tbar)));
+    const double n =
+        std::ceil(tau * (std::abs(damping_ + slope_ * tbar) + root) / kMaxStiffnessPerSubstep);
+    if (!(n > 1.0)) return 1;
+    return n < 1e5 ? static_cast<int>(n) : 100000;
+  }
+
+ private:
+  double damping_, slope_, stiffness_, kappa_, root_;
+};
 
 // The last ThermalPiece computed: a uniformly sampled window has one τ, so one exp per pass.
 class ThermalCache {

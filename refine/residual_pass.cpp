@@ -48,11 +48,21 @@ constexpr auto kTbarRowSlots = row_slots<in_tbar_base>();
 constexpr auto kTbarRowSlotsLagged = row_slots<in_tbar_lagged>();
 constexpr auto kXRowSlotsExtended = row_slots<in_x_output>();
 constexpr auto kTbarRowSlotsExtended = row_slots<in_tbar_output>();
+// Every slot but the optional ones, and all of them: where the score s_k can be non-zero.
+constexpr bool is_base(int s) {
+  return !is_optional(s);
+}
+constexpr bool is_any(int) {
+  return true;
+}
+constexpr auto kBaseSlots = row_slots<is_base>();
+constexpr auto kAllSlots = row_slots<is_any>();
 
 // Column Slots[B] of JᵀWJ's upper triangle += c·v over rows Slots[0..B]: a fixed-size segment
 // where the slots are the leading ones (x's row), else term by term.
 template <const auto& Slots, std::size_t B>
-inline void add_upper_column(ParamMatrix& h, const ParamVector& v, double c) noexcept {
+[[gnu::always_inline]] inline void add_upper_column(ParamMatrix& h, const ParamVector& v,
+                                                    double c) noexcept {
   constexpr int j = Slots[B];
   if constexpr (Slots.back() + 1 == static_cast<int>(Slots.size())) {
     h.col(j).template head<j + 1>() += c * v.template head<j + 1>();
@@ -95,12 +105,15 @@ inline void add_rows(ParamMatrix& h, const ParamVector& jx, double wx, const Par
 }
 
 // Overlapping batch means: Σ over windows of B consecutive scores of (Σ s)(Σ s)ᵀ/B equals the
-// Bartlett-weighted sum of the score's autocovariances with bandwidth B (Newey–West), at O(81) per
-// sample whatever B is.
+// Bartlett-weighted sum of the score's autocovariances with bandwidth B (Newey–West), at one
+// rank-one update per sample whatever B is: its upper triangle, over the slots the score can
+// reach (without the optional ones, 78 products of the 256 a full outer product takes).
 class LongRunAccumulator {
  public:
-  explicit LongRunAccumulator(int bandwidth)
-      : bandwidth_(std::max(1, bandwidth)), ring_(static_cast<std::size_t>(bandwidth_)) {}
+  LongRunAccumulator(int bandwidth, bool optional_slots)
+      : bandwidth_(std::max(1, bandwidth)),
+        optional_(optional_slots),
+        ring_(static_cast<std::size_t>(bandwidth_)) {}
 
   void add(const ParamVector& score) {
     ParamVector& slot = ring_[static_cast<std::size_t>(count_ % bandwidth_)];
@@ -109,7 +122,11 @@ class LongRunAccumulator {
     window_sum_ += score;
     ++count_;
     if (count_ >= bandwidth_) {
-      sum_.noalias() += window_sum_ * window_sum_.transpose();
+      if (optional_) {
+        add_outer_upper<kAllSlots>(sum_, window_sum_, 1.0);
+      } else {
+        add_outer_upper<kBaseSlots>(sum_, window_sum_, 1.0);
+      }
       ++windows_;
     }
   }
@@ -117,12 +134,14 @@ class LongRunAccumulator {
   // Scaled to the N samples (the N − B + 1 full windows stand for all N).
   ParamMatrix result() const {
     if (windows_ == 0) return ParamMatrix::Zero();
-    return sum_ * (static_cast<double>(count_) /
+    const ParamMatrix full = sum_.selfadjointView<Eigen::Upper>();
+    return full * (static_cast<double>(count_) /
                    (static_cast<double>(windows_) * static_cast<double>(bandwidth_)));
   }
 
  private:
   long bandwidth_;
+  bool optional_;
   std::vector<ParamVector> ring_;
   ParamVector window_sum_ = ParamVector::Zero();
   ParamMatrix sum_ = ParamMatrix::Zero();
@@ -454,7 +473,8 @@ bool jacobian_pass(std::span<const WindowSample> window, const ParamVector& p,
   Reference ref(settings, timing && settings.landing_jitter && wt > 0.0);
   std::unique_ptr<LongRunAccumulator> hac;
   if (settings.hac_bandwidth > 0)
-    hac = std::make_unique<LongRunAccumulator>(settings.hac_bandwidth);
+    hac = std::make_unique<LongRunAccumulator>(settings.hac_bandwidth,
+                                               settings.extensions || settings.sensor_lag);
   BatchSums batch_sums(settings.batches, window.size());
   std::size_t next_batch = batch_sums.next_start();
   ParamVector* batch_score = nullptr;

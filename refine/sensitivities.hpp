@@ -41,6 +41,7 @@ class SensitivitySimulator {
   // ∂T̄/∂p ← (1 − KT̄)·∂T̄/∂p.
   void correct_with_tbar(const Eigen::Vector3d& gain, double innovation) noexcept {
     refine::correct_with_tbar(state_, gain, innovation);
+    forcing_valid_ = false;
     dx_ -= gain[0] * dtbar_;
     dxdot_ -= gain[1] * dtbar_;
     dtbar_ *= 1.0 - gain[2];
@@ -58,14 +59,22 @@ class SensitivitySimulator {
   void advance_mechanical_sensitivities(const MechanicalPiece& mp, const ModelState& a,
                                         const Eigen::Vector3d& dtbar_a,
                                         const Eigen::Vector2d& ext_a) noexcept;
+  // The same for the extensions' slots (`extended`).
+  void advance_extension_sensitivities(const MechanicalPiece& mp, const ModelState& a,
+                                       const Eigen::Vector2d& ext_a) noexcept;
 
   Vector6 theta_;
+  SubstepRule substep_rule_;
   bool thermal_only_;
   Tempcos tc_;
   bool extended_;
   ModelState state_;
   ThermalCache cache_;
   ParamVector dx_, dxdot_, dtbar_;
+  // The mechanical sensitivities' forcing G at the last piece's end (θ and the initial state's
+  // slots), valid until a correction moves the state.
+  Eigen::Matrix<double, kModelSlots, 1> forcing_end_;
+  bool forcing_valid_ = false;
   long substeps_ = 0;
 };
 

@@ -51,6 +51,12 @@ FreeMask mechanical_slots(const FitSettings& settings);
 // (a) θ5, θ6, T̄0 on T̄ alone; sets the noise variance of T̄ and the model's T̄ range.
 StopReason fit_thermal(FitContext& ctx, FitState& state);
 
+// (a'') FitSettings estimates the sensor's lag, but a short window cannot tell it from the thermal
+// block's other terms (refine/lag_hold.cpp: judge_sensor_lag): the lag is held at its prior value
+// (0, or the warm start's) and the thermal stage run again without it. The fit then reports it
+// held (FitResult::sensor_lag_held).
+StopReason hold_undetermined_lag(FitContext& ctx, FitState& state);
+
 // (c) θ1..θ4, x0, ẋ0 on x, with T̄ simulated from the thermal fit; sets x's noise variance.
 StopReason fit_mechanical(FitContext& ctx, FitState& state);
 

@@ -1,8 +1,10 @@
 #include "refine/voltage_timing.hpp"
 
+#include <array>
 #include <cmath>
 #include <limits>
 
+#include "refine/heater_power.hpp"
 #include "refine/stages.hpp"
 
 namespace scp::refine {
@@ -11,10 +13,15 @@ std::span<const WindowSample> prepare_window(std::span<const WindowSample> windo
                                              estimator::VoltageHold hold, VoltageInterval interval,
                                              std::vector<WindowSample>& storage,
                                              VoltageShape shape) {
-  if (reads_as_recorded(hold, interval) || window.empty()) return window;
+  const bool power = measures_current(window);
+  if ((reads_as_recorded(hold, interval) && !power) || window.empty()) return window;
   storage.assign(window.begin(), window.end());
   for (std::size_t k = 1; k < window.size(); ++k)
     storage[k] = prepared_sample(window[k - 1], window[k], hold, interval);
+  if (power) {
+    // Each row's voltage is now the one that drove its current (refine/heater_power.hpp).
+    use_measured_power(storage, reference_resistance(window, interval));
+  }
   if (hold == estimator::VoltageHold::foh && shape == VoltageShape::smooth)
     add_cubic_midpoints(storage);
   return storage;
@@ -46,26 +53,52 @@ WindowSample prepared_sample(const WindowSample& prev, const WindowSample& cur,
 
 namespace {
 
-// T̄'s residual variance after the thermal stage on `window`; ∞ when it cannot be fitted.
-double thermal_residual(std::span<const WindowSample> window, const Vector6& theta_start,
-                        const FitSettings& settings) {
+// The thermal stage's fit (θ5, θ6, T̄0 on T̄ alone) judged by Schwarz's criterion,
+// n·ln σ̂² + k·ln n with k its free slots (∞ when it cannot be fitted), and the sensor lag it
+// estimated.
+struct ThermalCriterion {
+  double score = std::numeric_limits<double>::infinity();
+  double lag = 0.0;
+};
+
+ThermalCriterion thermal_criterion(std::span<const WindowSample> window, const Vector6& theta_start,
+                                   const FitSettings& settings) {
   FitState state;
   state.p = start_point(window, theta_start, settings.known);
-  if (!state.p.allFinite()) return std::numeric_limits<double>::infinity();
+  if (!state.p.allFinite()) return {};
   FitContext ctx(window, settings);
-  if (fit_thermal(ctx, state) != StopReason::none) return std::numeric_limits<double>::infinity();
-  return state.noise.tbar;
-}
-
-// Schwarz's criterion of that fit on T̄ alone: n·ln σ̂² + k·ln n, k its free slots.
-double thermal_criterion(std::span<const WindowSample> window, const Vector6& theta_start,
-                         const FitSettings& settings) {
-  const double variance = thermal_residual(window, theta_start, settings);
-  if (!std::isfinite(variance) || !(variance > 0.0)) return std::numeric_limits<double>::infinity();
+  if (fit_thermal(ctx, state) != StopReason::none) return {};
+  const double variance = state.noise.tbar;
+  if (!std::isfinite(variance) || !(variance > 0.0)) return {};
   int k = 0;
   for (const bool f : thermal_slots(settings)) k += f ? 1 : 0;
   const double n = static_cast<double>(window.size());
-  return n * std::log(variance) + k * std::log(n);
+  return {n * std::log(variance) + k * std::log(n), state.p[kSensorLagSlot]};
+}
+
+// A lag this many sampling periods long or shorter is what a one-period shift of the voltage
+// looks like in T̄ (to first order), not a sensor's.
+constexpr double kShiftLikeLagPeriods = 3.0;
+
+// The interval from the thermal fits with the lag held at 0 and free, each [before, after].
+VoltageInterval pick_interval(const std::array<ThermalCriterion, 2>& held,
+                              const std::array<ThermalCriterion, 2>& free, bool lag_free,
+                              std::span<const WindowSample> window) {
+  const VoltageInterval by_held =
+      held[1].score < held[0].score ? VoltageInterval::after : VoltageInterval::before;
+  if (!lag_free) return by_held;
+  const ThermalCriterion& best_free = free[1].score < free[0].score ? free[1] : free[0];
+  if (!(best_free.score < std::min(held[0].score, held[1].score))) return by_held;
+  // A free lag fits better. A lag of a period or so is the other interval in disguise (the lag
+  // and the shift trade to first order, and the criterion's one slot is too little a price at a
+  // coarse T sensor's noise): the shift, a discrete choice, is made without it.
+  const double n = static_cast<double>(window.size());
+  const double period = (window.back().t - window.front().t) / (n - 1.0);
+  if (best_free.lag <= kShiftLikeLagPeriods * period) return by_held;
+  // A real lag (tenths of a second): the interval shows only in the second-order term, so
+  // `after`, the other convention than the daemon's, has to earn its place like a parameter.
+  return free[1].score + std::log(n) < free[0].score ? VoltageInterval::after
+                                                     : VoltageInterval::before;
 }
 
 }  // namespace
@@ -74,28 +107,21 @@ VoltageInterval choose_voltage_interval(std::span<const WindowSample> window,
                                         const Vector6& theta_start, const FitSettings& settings) {
   // A one-period shift of the voltage and a first-order lag of the sensor look alike in T̄ (to
   // O(Δ·τs·T̄'')): with the lag free, `after` with a lag of minus one period fits a record logged
-  // `before` about as well, and `before` with a lag of one period one logged `after`. So an
-  // estimated lag is also tried held at 0, and the criterion, which charges the lag its
-  // parameter, prefers the interval that needs none; a real lag (tenths of a second) leaves both
-  // held fits far behind and the free ones apart by its larger second-order term.
+  // `before` about as well, and `before` with a lag of one period one logged `after`. So each
+  // interval is fitted with the lag held at 0 and free, and pick_interval weighs them.
   FitSettings held = settings;
-  if (!held.nuisance.sensor_lag.fixed) held.nuisance.sensor_lag = {.fixed = true, .value = 0.0};
+  const bool lag_free = !settings.nuisance.sensor_lag.fixed;
+  if (lag_free) held.nuisance.sensor_lag = {.fixed = true, .value = 0.0};
   std::vector<WindowSample> storage;
-  double best = std::numeric_limits<double>::infinity();
-  VoltageInterval chosen = VoltageInterval::before;
-  for (const VoltageInterval interval : {VoltageInterval::before, VoltageInterval::after}) {
-    const std::span<const WindowSample> prepared =
-        prepare_window(window, settings.voltage_hold, interval, storage, settings.voltage_shape);
-    for (const FitSettings* s : {static_cast<const FitSettings*>(&held), &settings}) {
-      if (s == &settings && settings.nuisance.sensor_lag.fixed) continue;  // tried as `held`
-      const double score = thermal_criterion(prepared, theta_start, *s);
-      if (score < best) {
-        best = score;
-        chosen = interval;
-      }
-    }
+  std::array<ThermalCriterion, 2> held_fit, free_fit;
+  const std::array<VoltageInterval, 2> intervals{VoltageInterval::before, VoltageInterval::after};
+  for (std::size_t i = 0; i < intervals.size(); ++i) {
+    const std::span<const WindowSample> prepared = prepare_window(
+        window, settings.voltage_hold, intervals[i], storage, settings.voltage_shape);
+    held_fit[i] = thermal_criterion(prepared, theta_start, held);
+    if (lag_free) free_fit[i] = thermal_criterion(prepared, theta_start, settings);
   }
-  return chosen;
+  return pick_interval(held_fit, free_fit, lag_free, window);
 }
 
 }  // namespace scp::refine

@@ -25,7 +25,9 @@ constexpr bool reads_as_recorded(estimator::VoltageHold hold, VoltageInterval in
 }
 
 // `window` as the model reads it under `hold` and `interval` (before or after), and with foh
-// `shape`: `window` itself when it reads_as_recorded, else `storage` filled and returned.
+// `shape`: `window` itself when it reads_as_recorded and has no currents, else `storage` filled
+// and returned. With the heater's current in every sample, each row's voltage becomes its heating
+// voltage, whose square is the measured power times R_ref (refine/heater_power.hpp).
 std::span<const WindowSample> prepare_window(std::span<const WindowSample> window,
                                              estimator::VoltageHold hold, VoltageInterval interval,
                                              std::vector<WindowSample>& storage,
@@ -49,10 +51,12 @@ WindowSample prepared_sample(const WindowSample& prev, const WindowSample& cur,
 
 // VoltageInterval::estimate: before or after, whichever gives the thermal stage's fit (θ5, θ6,
 // T̄0 on T̄ alone, from `theta_start` as fit() starts) the lower Schwarz criterion, an estimated
-// sensor lag tried both free and held at 0 (a one-period shift trades against it). A row's interval
-// is a whole sample period of the voltage's timing, which T̄ resolves to a fraction of a µs
-// (refine/input_delay.hpp); x could not tell (θ1..θ4's common scale is a sub-millisecond lag).
-// `before` when neither can be fitted.
+// sensor lag tried both free and held at 0 (a one-period shift trades against it). A free lag
+// that wins at a few periods or less is the other interval in disguise: the choice is then the
+// held fits'. A real lag leaves the interval to the second-order term, and `after` must beat
+// `before` by one slot's price. A row's interval is a whole sample period of the voltage's timing,
+// which T̄ resolves to a fraction of a µs (refine/input_delay.hpp); x could not tell (θ1..θ4's
+// common scale is a sub-millisecond lag). `before` when neither can be fitted.
 VoltageInterval choose_voltage_interval(std::span<const WindowSample> window,
                                         const Vector6& theta_start, const FitSettings& settings);
 

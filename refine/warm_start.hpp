@@ -30,6 +30,7 @@ struct WarmStart {
   // variances (x, T̄; the samples' timing, s²) and the voltage's timing as the fit left them.
   Vector3 nuisance = Vector3::Zero();  // x zero, ambient offset, ambient drift
   double sensor_lag = 0.0;             // s
+  bool sensor_lag_held = false;        // FitResult::sensor_lag_held
   Vector2 noise_variance = Vector2::Zero();
   double timing_variance = 0.0;
   bool input_delay_estimated = false;

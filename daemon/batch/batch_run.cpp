@@ -8,7 +8,6 @@
 #include <limits>
 #include <memory>
 #include <optional>
-#include <thread>
 
 #include "common/clock.hpp"
 #include "daemon/analysis/health/health_agent.hpp"
@@ -51,10 +50,12 @@ std::unique_ptr<drivers::Driver> batch_driver(config::DaemonConfig& cfg,
   return replay_driver;
 }
 
-// Fits made at once: options.jobs, 0 meaning one per core.
+// Fits made at once: options.jobs, 0 meaning inline. Inline each warm refit starts from the fit
+// just before; a lane's from N intervals back gives way to the full fit more often, and since the
+// warm refits became the cheap case two lanes cost more CPU than they save in wall time
+// (docs/numerics.md, "Offline on every core").
 unsigned batch_jobs(const BatchOptions& options) {
-  if (options.jobs != 0) return options.jobs;
-  return std::max(1U, std::thread::hardware_concurrency());
+  return std::max(1U, options.jobs);
 }
 
 // One batch run: the daemon's loop, cycle after cycle without sleeping, on loop time; the

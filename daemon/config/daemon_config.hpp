@@ -120,6 +120,7 @@ struct SafetySettings {
   double temperature_max_c = 100.0;
   double temperature_min_c = -20.0;
   double position_abs_max_m = 0.05;
+  double current_max_a = 10.0;    // |heater current| above this is a fault, where it is measured
   double stale_timeout_s = 0.02;  // no fresh reading for this long is a fault
   double recover_after_s = 2.0;   // a driver fault clears after this long healthy; 0 = latch
   double stuck_timeout_s = 0.0;   // x and T bit-identical this long at non-zero output; 0 = off

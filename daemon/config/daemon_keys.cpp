@@ -263,6 +263,9 @@ void declare_safety(Binder safety, SafetySettings& out) {
                 "actuator temperature below this is a fault (a broken sensor reads low)");
   safety.number("position_abs_max_m", out.position_abs_max_m, 0.05, 1e-9, 10.0,
                 "|x| above this is a fault");
+  safety.number("current_max_a", out.current_max_a, 10.0, 1e-6, 1e4,
+                "|heater current| above this is a fault (a short circuit, or a wrong scale in "
+                "the driver's map); checked only where the device measures the current");
   safety.number("stale_timeout_s", out.stale_timeout_s, 0.02, 1e-4, 60.0,
                 "no fresh reading for this long is a fault");
   safety.number("recover_after_s", out.recover_after_s, 2.0, 0.0, 3600.0,

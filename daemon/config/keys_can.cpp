@@ -62,10 +62,12 @@ void declare_can_keys(Binder& can_section, CanSettings& out) {
 
   // Sub-binders stay alive until the cross-key checks, which fail on the offending one.
   std::vector<std::pair<std::string, Binder>> sections;
-  static constexpr const char* kDocs[4] = {
+  static constexpr const char* kDocs[drivers::can::kSignalCount] = {
       "position x in m (required)", "velocity ẋ in m/s (optional; else estimated from x)",
-      "temperature T in °C, absolute (required)", "voltage read back in V (optional)"};
-  for (int i = 0; i < 4; ++i) {
+      "temperature T in °C, absolute (required)", "voltage read back in V (optional)",
+      ("the heater's current in A (optional; present: the refinement's thermal input is the "
+       "measured power V·I)")};
+  for (int i = 0; i < drivers::can::kSignalCount; ++i) {
     const std::string name = drivers::can::kSignalNames[i];
     Binder b = can_section.section(name, kDocs[i]);
     CanSignal& sig = *drivers::can::signal_at(out, i);

@@ -81,7 +81,7 @@ void declare_signal(Binder& signals, std::string_view name, std::string_view doc
       "0-based protocol address of the first register (manual's 30001/40001 minus that base)");
   declare_format(b, sig.type, sig.word_order, RegisterType::float32, written);
   b.number("scale", sig.scale, sig.scale, -1e12, 1e12,
-           "engineering value = raw * scale + offset, in SI units (m, m/s, degC, V)");
+           "engineering value = raw * scale + offset, in SI units (m, m/s, degC, V, A)");
   b.number("offset", sig.offset, sig.offset, -1e12, 1e12, "added after scaling");
   sig.present = required || written;
   if (written && sig.scale == 0.0)
@@ -167,8 +167,9 @@ void declare_modbus_keys(Binder& m, ModbusSettings& out) {
       "unit_id", out.unit_id, 1, 0, 255,
       "Modbus unit (slave) id of the DAQ: 1-247 on RTU; TCP devices often ignore it or use 255");
   m.number("response_timeout", out.response_timeout_s, 0.0004, 0.0001, 10.0,
-           "s a transaction may wait for its reply; times the transactions per cycle it must fit "
-           "in loop.period");
+           "s a transaction may wait for its reply (on RTU: for its first byte, then for each "
+           "later byte after the one before); times the transactions per cycle it must fit in "
+           "loop.period");
   m.number("offline_response_timeout", out.offline_response_timeout_s, 1.0, 0.0001, 60.0,
            "s a transaction may wait in scp-estimatord --offline (lock-step runs have no period "
            "budget: a late reply there is a loaded machine, not a dead DAQ)");
@@ -224,7 +225,8 @@ void declare_modbus_keys(Binder& m, ModbusSettings& out) {
   Binder signals = m.section(
       "signals", "register map of the measured signals (defaults: scp-simdaq's default map)");
   const bool any = signals.present("x") || signals.present("xdot") ||
-                   signals.present("temperature") || signals.present("voltage");
+                   signals.present("temperature") || signals.present("voltage") ||
+                   signals.present("current");
   declare_signal(signals, "x", "length change of the actuator, m (required)", out.x, true, any);
   declare_signal(signals, "xdot", "velocity, m/s (optional; absent: the loop estimates it)",
                  out.xdot, false, any);
@@ -233,6 +235,10 @@ void declare_modbus_keys(Binder& m, ModbusSettings& out) {
   declare_signal(signals, "voltage",
                  "read-back of the applied voltage, V (optional; absent: the last command)",
                  out.voltage, false, any);
+  declare_signal(signals, "current",
+                 "the heater's current, A (optional; present: the refinement's thermal input is "
+                 "the measured power V*I)",
+                 out.current, false, any);
   declare_command(m, out.command);
   if (const auto clash = drivers::modbus::find_overlap(out)) {
     const auto& [a, b] = *clash;

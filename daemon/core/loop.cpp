@@ -104,6 +104,9 @@ drivers::IoStatus Loop::read_sample(const drivers::CycleTime& now, bool& awaitin
     if (xdot_ == Xdot::unknown) {
       xdot_ = std::isfinite(sample.xdot) ? Xdot::measured : Xdot::estimated;
     }
+    if (current_ == Current::unknown) {
+      current_ = std::isnan(sample.current) ? Current::not_measured : Current::measured;
+    }
     sample_ = sample;
     sample_fresh_ = true;
     have_fresh_ = true;
@@ -117,7 +120,8 @@ void Loop::check_safety(const drivers::CycleTime& now, drivers::IoStatus read,
                         bool awaiting) noexcept {
   if (sample_fresh_) {
     Reason why{};
-    sample_valid_ = check_sample(sample_, safety_, xdot_ == Xdot::measured, why);
+    sample_valid_ =
+        check_sample(sample_, safety_, xdot_ == Xdot::measured, current_ == Current::measured, why);
     // voltage_command_ is still last cycle's command: the one the plant saw up to this reading.
     if (sample_valid_ &&
         !stuck_.update(sample_, now.t, voltage_command_ != 0.0, safety_.stuck_timeout_s, why)) {
@@ -246,7 +250,7 @@ bool Loop::cause_gone(Reason& why) const noexcept {
     set_reason(why, "no fresh reading this cycle");
     return false;
   }
-  return check_sample(sample_, safety_, true, why);
+  return check_sample(sample_, safety_, true, current_ == Current::measured, why);
 }
 
 void Loop::enter_fault(FaultKind kind, const char* reason) noexcept {
@@ -377,6 +381,7 @@ void Loop::hand_off(const drivers::Sample& fed) noexcept {
   h.sample.tbar = fed.temperature - config_.actuator.ambient_c;
   h.sample.voltage = fed.voltage;
   h.sample.voltage_since = fed.voltage_since;
+  h.sample.current = fed.current;
   h.segment = handoff_segment_;
   if (!handoff_->try_push(h)) {
     ++dropped_handoff_;

@@ -122,6 +122,8 @@ class Loop {
   // Decided by the first fresh sample: does the device measure ẋ? If it does, a later NaN ẋ is a
   // sensor fault; if not, ẋ is estimated from x (driver.velocity.method).
   enum class Xdot : std::uint8_t { unknown, measured, estimated } xdot_ = Xdot::unknown;
+  // The same for the heater's current: once measured, a later NaN is a sensor fault.
+  enum class Current : std::uint8_t { unknown, measured, not_measured } current_ = Current::unknown;
   EstimatorStateCell estimator_state_;
   bool physical_known_;
 

@@ -23,8 +23,29 @@ void set_reason(Reason& reason, const char* text) noexcept {
   std::memcpy(reason.data() + keep, kCut, sizeof kCut);
 }
 
+namespace {
+
+// The heater's current, where the device measures it: finite and within safety.current_max_a.
+bool check_current(const drivers::Sample& s, const config::SafetySettings& limits,
+                   Reason& reason) noexcept {
+  if (!std::isfinite(s.current)) {
+    set_reason(reason, "sensor fault: heater current is not a finite number");
+    return false;
+  }
+  if (std::fabs(s.current) > limits.current_max_a) {
+    std::snprintf(reason.data(), reason.size(),
+                  "heater current |I| = %.4g A above safety.current_max_a = %.4g A (a short "
+                  "circuit, or the current's scale in the driver's map)",
+                  std::fabs(s.current), limits.current_max_a);
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
 bool check_sample(const drivers::Sample& s, const config::SafetySettings& limits,
-                  bool xdot_required, Reason& reason) noexcept {
+                  bool xdot_required, bool current_required, Reason& reason) noexcept {
   if (!std::isfinite(s.x)) {
     set_reason(reason, "sensor fault: position x is not a finite number");
     return false;
@@ -41,6 +62,7 @@ bool check_sample(const drivers::Sample& s, const config::SafetySettings& limits
     set_reason(reason, "sensor fault: velocity xdot is not a finite number");
     return false;
   }
+  if (current_required && !check_current(s, limits, reason)) return false;
   if (s.temperature > limits.temperature_max_c) {
     std::snprintf(reason.data(), reason.size(),
                   "temperature %.2f °C above safety.temperature_max_c = %.2f °C", s.temperature,

@@ -13,10 +13,11 @@ namespace scp::daemon {
 using Reason = std::array<char, kReasonChars>;
 
 // True when the sample is usable and within every limit. Otherwise false, with `reason` naming
-// the signal, its value and the limit. `xdot_required` is false when ẋ is estimated from x.
+// the signal, its value and the limit. `xdot_required` is false when ẋ is estimated from x;
+// `current_required` true when the device measures the heater's current (Sample::current).
 // Real-time safe (snprintf into the caller's buffer).
 bool check_sample(const drivers::Sample& sample, const config::SafetySettings& limits,
-                  bool xdot_required, Reason& reason) noexcept;
+                  bool xdot_required, bool current_required, Reason& reason) noexcept;
 
 // The command actually sent: the excitation clamped to [0, voltage_max_v]; a non-finite request
 // becomes 0 V.

@@ -27,7 +27,7 @@ const CanSettings& validated(const CanSettings& s) {
 }  // namespace
 
 CanDriver::CanDriver(const CanSettings& settings) : settings_(validated(settings)) {
-  for (int i = 0; i < 4; ++i) {
+  for (int i = 0; i < kSignalCount; ++i) {
     const CanSignal& sig = *signal_at(settings_, i);
     if (!sig.present) continue;
     const canid_t id = wire_id(sig);
@@ -114,7 +114,7 @@ void CanDriver::handle_data_frame(const canfd_frame& f, double t) noexcept {
   const bool ext = (f.can_id & CAN_EFF_FLAG) != 0;
   const std::uint32_t id = f.can_id & (ext ? CAN_EFF_MASK : CAN_SFF_MASK);
   bool used = false;
-  for (int i = 0; i < 4; ++i) {
+  for (int i = 0; i < kSignalCount; ++i) {
     const CanSignal& sig = *signal_at(settings_, i);
     if (!sig.present || sig.frame_id != id || sig.extended != ext) continue;
     if (!signal_fits(sig, f.len)) continue;  // a short frame: counted below if nothing fit
@@ -139,7 +139,7 @@ void CanDriver::handle_data_frame(const canfd_frame& f, double t) noexcept {
 }
 
 bool CanDriver::all_present_fresh() const noexcept {
-  for (int i = 0; i < 4; ++i) {
+  for (int i = 0; i < kSignalCount; ++i) {
     if (signal_at(settings_, i)->present && !fresh_[i]) return false;
   }
   return true;
@@ -209,7 +209,7 @@ IoResult CanDriver::read(const CycleTime& now, Sample& out) noexcept {
 
   bool waiting = false;
   bool any_fresh = false;
-  for (int i = 0; i < 4; ++i) {
+  for (int i = 0; i < kSignalCount; ++i) {
     const CanSignal& sig = *signal_at(settings_, i);
     if (!sig.present) continue;
     if (!received_[i]) {
@@ -234,6 +234,7 @@ IoResult CanDriver::read(const CycleTime& now, Sample& out) noexcept {
   out.temperature = value_[2];
   // Without a read-back, the command sent last cycle is what the DAC held over this interval.
   out.voltage = settings_.voltage.present ? value_[3] : last_command_;
+  out.current = settings_.current.present ? value_[4] : kNotMeasured;
   ++stats_.reads;
   return IoResult::ok();
 }

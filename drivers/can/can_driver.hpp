@@ -71,14 +71,14 @@ class CanDriver final : public Driver {
   CanChannel channel_;
   bool have_channel_ = false;
 
-  std::array<canid_t, 4> ids_{};
+  std::array<canid_t, kSignalCount> ids_{};
   std::size_t n_ids_ = 0;
-  std::array<double, 4> value_{};
-  std::array<double, 4> rx_t_{};  // loop time the value arrived
-  std::array<bool, 4> received_{};
-  std::array<bool, 4> fresh_{};  // arrived during this read
-  std::array<std::array<char, 112>, 4> stale_reason_{};
-  std::array<std::array<char, 112>, 4> never_reason_{};
+  std::array<double, kSignalCount> value_{};
+  std::array<double, kSignalCount> rx_t_{};  // loop time the value arrived
+  std::array<bool, kSignalCount> received_{};
+  std::array<bool, kSignalCount> fresh_{};  // arrived during this read
+  std::array<std::array<char, 112>, kSignalCount> stale_reason_{};
+  std::array<std::array<char, 112>, kSignalCount> never_reason_{};
   char bus_off_reason_[160] = {};
   char down_reason_[160] = {};
   char tx_full_reason_[160] = {};

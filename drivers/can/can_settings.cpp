@@ -87,13 +87,13 @@ std::optional<SettingsProblem> validate_can_settings(const CanSettings& s) {
   if (!s.temperature.present) {
     return SettingsProblem{"temperature.present", "the temperature signal is required"};
   }
-  for (int i = 0; i < 4; ++i) {
+  for (int i = 0; i < kSignalCount; ++i) {
     const CanSignal& sig = *signal_at(s, i);
     if (!sig.present) continue;
     if (auto p = check_signal(sig, kSignalNames[i], s.fd)) return p;
   }
   if (auto p = check_signal(s.command.signal, "command", s.fd)) return p;
-  for (int i = 0; i < 4; ++i) {
+  for (int i = 0; i < kSignalCount; ++i) {
     const CanSignal& a = *signal_at(s, i);
     if (!a.present) continue;
     const std::string key = std::string(kSignalNames[i]) + ".frame_id";
@@ -140,7 +140,7 @@ std::optional<SettingsProblem> validate_can_settings(const CanSettings& s) {
                                                        " is also the command frame id; use "
                                                        "distinct ids"};
     }
-    for (int i = 0; i < 4; ++i) {
+    for (int i = 0; i < kSignalCount; ++i) {
       const CanSignal& sig = *signal_at(s, i);
       if (sig.present && clash(sig)) {
         return SettingsProblem{"heartbeat.frame_id", "frame id " + hex_id(hb.frame_id) +
@@ -166,6 +166,8 @@ CanSettings default_can_settings() {
   // Frame 0x102: temperature (0.1 m°C) and voltage read back (1 mV).
   s.temperature = {true, 0x102, false, 8, 0, 32, ByteOrder::little_endian, true, 1e-4, 0.0, 0.05};
   s.voltage = {false, 0x102, false, 8, 32, 16, ByteOrder::little_endian, false, 1e-3, 0.0, 0.05};
+  // and the heater's current (1 mA, signed: ±32 A).
+  s.current = {false, 0x102, false, 8, 48, 16, ByteOrder::little_endian, true, 1e-3, 0.0, 0.05};
   // Frame 0x201: the voltage command, 16-bit unsigned, 1 mV.
   s.command.signal = {true,  0x201, false, 2,   0, 16, ByteOrder::little_endian,
                       false, 1e-3,  0.0,   0.05};

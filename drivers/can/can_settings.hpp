@@ -56,6 +56,7 @@ struct CanSettings {
   CanSignal xdot;         // m/s, optional (absent: Sample::xdot = NaN)
   CanSignal temperature;  // °C absolute, required
   CanSignal voltage;      // V read back, optional (absent: the last command is reported)
+  CanSignal current;      // A, the heater's current, optional (absent: Sample::current = NaN)
   CanCommand command;
   CanHeartbeat heartbeat;
   int tx_full_fault_after = 10;    // consecutive "transmit queue full" writes before a fault
@@ -66,15 +67,17 @@ struct CanSettings {
 };
 
 // The signal names, in the order the driver keeps them; used in messages and config keys.
-inline constexpr const char* kSignalNames[4] = {"x", "xdot", "temperature", "voltage"};
+inline constexpr int kSignalCount = 5;
+inline constexpr const char* kSignalNames[kSignalCount] = {"x", "xdot", "temperature", "voltage",
+                                                           "current"};
 
-// Pointers to the four sensor signals in kSignalNames order.
+// Pointers to the sensor signals in kSignalNames order.
 inline const CanSignal* signal_at(const CanSettings& s, int i) noexcept {
-  const CanSignal* all[4] = {&s.x, &s.xdot, &s.temperature, &s.voltage};
+  const CanSignal* all[kSignalCount] = {&s.x, &s.xdot, &s.temperature, &s.voltage, &s.current};
   return all[i];
 }
 inline CanSignal* signal_at(CanSettings& s, int i) noexcept {
-  CanSignal* all[4] = {&s.x, &s.xdot, &s.temperature, &s.voltage};
+  CanSignal* all[kSignalCount] = {&s.x, &s.xdot, &s.temperature, &s.voltage, &s.current};
   return all[i];
 }
 

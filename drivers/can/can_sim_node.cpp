@@ -46,7 +46,7 @@ canfd_frame error_frame(canid_t cls, std::uint8_t ctrl) noexcept {
 
 CanSimNode::CanSimNode(const CanSettings& can, const sim::SimSettings& sim, CanChannel channel)
     : can_(validated(can)), sim_(sim), channel_(std::move(channel)) {
-  for (int i = 0; i < 4; ++i) {
+  for (int i = 0; i < kSignalCount; ++i) {
     const CanSignal& sig = *signal_at(can_, i);
     if (!sig.present) continue;
     Frame* target = nullptr;
@@ -128,7 +128,7 @@ void CanSimNode::step(double t, double period) noexcept {
     return;
   }
   if (silent_) return;
-  const double values[4] = {s.x, s.xdot, s.temperature, s.voltage};
+  const double values[kSignalCount] = {s.x, s.xdot, s.temperature, s.voltage, s.current};
   for (Frame& fr : frames_) {
     for (int k = 0; k < fr.n_signals; ++k) {
       const int i = fr.signals[static_cast<std::size_t>(k)];

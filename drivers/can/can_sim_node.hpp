@@ -64,7 +64,7 @@ class CanSimNode {
  private:
   struct Frame {
     canfd_frame frame{};
-    std::array<int, 4> signals{};  // indices into kSignalNames
+    std::array<int, kSignalCount> signals{};  // indices into kSignalNames
     int n_signals = 0;
   };
 

@@ -438,6 +438,7 @@ IoResult ModbusDriver::read(const CycleTime& now, Sample& out) noexcept {
   out.x = values[static_cast<std::size_t>(SignalId::x)];
   out.xdot = values[static_cast<std::size_t>(SignalId::xdot)];
   out.temperature = values[static_cast<std::size_t>(SignalId::temperature)];
+  out.current = values[static_cast<std::size_t>(SignalId::current)];  // NaN when not in the map
   // Without a read-back the DAC holds what was last accepted over the interval now ending.
   out.voltage = settings_.voltage.present ? values[static_cast<std::size_t>(SignalId::voltage)]
                                           : last_command_;

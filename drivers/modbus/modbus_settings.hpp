@@ -90,6 +90,7 @@ struct ModbusSettings {
   RegisterSignal xdot{false, Table::input, 4, RegisterType::float32, WordOrder::ab, 1.0, 0.0};
   RegisterSignal temperature{true, Table::input, 2, RegisterType::float32, WordOrder::ab, 1.0, 0.0};
   RegisterSignal voltage{false, Table::input, 6, RegisterType::float32, WordOrder::ab, 1.0, 0.0};
+  RegisterSignal current{false, Table::input, 8, RegisterType::float32, WordOrder::ab, 1.0, 0.0};
   CommandRegister command;
   LinkTiming timing;
 };

@@ -14,13 +14,13 @@
 namespace scp::drivers::modbus {
 
 // The signals in a fixed order; the names are the config keys under driver.modbus.signals.
-enum class SignalId : std::uint8_t { x, xdot, temperature, voltage };
-inline constexpr std::size_t kSignalCount = 4;
+enum class SignalId : std::uint8_t { x, xdot, temperature, voltage, current };
+inline constexpr std::size_t kSignalCount = 5;
 inline constexpr std::array<std::string_view, kSignalCount> kSignalNames = {
-    "x", "xdot", "temperature", "voltage"};
+    "x", "xdot", "temperature", "voltage", "current"};
 
 inline std::array<const RegisterSignal*, kSignalCount> signals_of(const ModbusSettings& s) {
-  return {&s.x, &s.xdot, &s.temperature, &s.voltage};
+  return {&s.x, &s.xdot, &s.temperature, &s.voltage, &s.current};
 }
 
 // Registers [first, last] a signal occupies.
@@ -35,7 +35,7 @@ struct RegisterSpan {
 // by config key, or nothing. A shared register would make one of them silently wrong.
 inline std::optional<std::pair<RegisterSpan, RegisterSpan>> find_overlap(const ModbusSettings& s) {
   static constexpr std::array<std::string_view, kSignalCount> kKeys = {
-      "signals.x", "signals.xdot", "signals.temperature", "signals.voltage"};
+      "signals.x", "signals.xdot", "signals.temperature", "signals.voltage", "signals.current"};
   std::array<RegisterSpan, kSignalCount + 1> spans{};
   std::size_t n = 0;
   const auto sigs = signals_of(s);

@@ -58,6 +58,7 @@ LineCycle line_cycle(const ModbusSettings& settings) {
     const double exchange = (request_chars + reply_chars) * c;
     out.wire_s += exchange;
     out.longest_exchange_s = std::max(out.longest_exchange_s, exchange);
+    out.longest_first_byte_s = std::max(out.longest_first_byte_s, (request_chars + 1) * c);
   };
   for (const ReadBlock& block : plan_reads(settings, settings.max_read_gap).blocks)
     add(read_request_chars(), read_reply_chars(block.count));
@@ -82,12 +83,13 @@ std::vector<std::string> line_timing_warnings(const ModbusSettings& settings, do
   const LineCycle line = line_cycle(settings);
   if (line.wire_s == 0.0) return out;
   const double timeout = settings.response_timeout_s;
-  if (timeout < line.longest_exchange_s) {
-    out.push_back(ms(timeout) + " is shorter than the " + ms(line.longest_exchange_s) +
-                  " the longest transaction's frames take at " + line_name(settings) +
-                  ": on a real line no reply can arrive in time (a pty without wire time is "
+  if (timeout < line.longest_first_byte_s) {
+    out.push_back(ms(timeout) + " is shorter than the " + ms(line.longest_first_byte_s) +
+                  " the longest request and its reply's first character take at " +
+                  line_name(settings) +
+                  ": on a real line no reply can begin in time (a pty without wire time is "
                   "faster); raise the timeout (the slave's turnaround on top), raise "
-                  "driver.modbus.rtu.baud or read fewer registers");
+                  "driver.modbus.rtu.baud or write fewer registers at once");
   }
   const double cycle = line.wire_s + line.silences_s;
   if (cycle > period_s) {

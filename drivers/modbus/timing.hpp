@@ -20,6 +20,9 @@ struct LineCycle {
   double silences_s = 0.0;          // t3.5 before every request
   double wire_s = 0.0;              // every request's and reply's characters
   double longest_exchange_s = 0.0;  // the longest request + reply (the slave's turnaround aside)
+  // The longest request + its reply's first character: what response_timeout must cover (it
+  // bounds the wait for that character; the rest of the reply follows within the cycle).
+  double longest_first_byte_s = 0.0;
 };
 LineCycle line_cycle(const ModbusSettings& settings);
 

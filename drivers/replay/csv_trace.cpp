@@ -25,6 +25,8 @@ enum Column : std::size_t { kT, kX, kXdot, kTemp, kV };
 // daemon records it on a link that stamps its writes; blank (or no such column) means the voltage
 // was applied over the whole interval.
 constexpr std::string_view kVoltageSinceColumn = "V_since";
+// Optional: the heater's current in A (Sample::current); blank or nan: not measured.
+constexpr std::string_view kCurrentColumn = "I";
 
 // Values quoted from the file read back as the same doubles.
 using checks::exact_num;
@@ -219,6 +221,21 @@ double parse_voltage_since(std::string_view text, double t, const std::string& p
   return since;
 }
 
+// I of one row: blank or nan is "not measured"; ±inf is loaded as-is, like x, T and V, for the
+// loop's safety check to see.
+double parse_current(std::string_view text, const std::string& path, std::size_t line_no,
+                     std::size_t field) {
+  if (text.empty() || text == "nan" || text == "NaN" || text == "NAN") return kNotMeasured;
+  double current = 0.0;
+  if (!parse_double(text, current)) {
+    fail(path, line_no,
+         column_ref(kCurrentColumn, field) + ": cannot parse '" + std::string(text) +
+             "' as a current; write the heater's current in A with '.' as decimal point, or "
+             "leave it blank when it was not measured");
+  }
+  return current;
+}
+
 // The file's lines that hold data (not blank, not a comment), numbered for the messages.
 class LineReader {
  public:
@@ -247,6 +264,8 @@ struct Header {
   std::array<std::size_t, kColumns.size()> index{};
   bool has_since = false;
   std::size_t since_index = 0;
+  bool has_current = false;
+  std::size_t current_index = 0;
 };
 
 // The first line that is neither blank nor a comment names the columns.
@@ -284,6 +303,10 @@ Header read_header(LineReader& reader, const std::string& path) {
   h.has_since = since != header.end();
   if (h.has_since) unique(since, kVoltageSinceColumn);
   h.since_index = static_cast<std::size_t>(since - header.begin());
+  const auto current = std::find(header.begin(), header.end(), kCurrentColumn);
+  h.has_current = current != header.end();
+  if (h.has_current) unique(current, kCurrentColumn);
+  h.current_index = static_cast<std::size_t>(current - header.begin());
   return h;
 }
 
@@ -347,6 +370,8 @@ Trace parse_rows(std::istream& in, const std::string& path, std::size_t& header_
       s.voltage_since =
           parse_voltage_since(fields[h.since_index], v[kT], path, line_no, h.since_index);
     }
+    if (h.has_current)
+      s.current = parse_current(fields[h.current_index], path, line_no, h.current_index);
     s.t = v[kT];
     s.x = v[kX];
     s.xdot = v[kXdot];

@@ -6,7 +6,8 @@
 // and `T` temperature). Other columns are ignored, text or empty (the daemon's recordings also
 // carry theta_hat1..6, eps1, eps2, state, refined_theta_hat1..6, best, ...). Blank lines and lines
 // starting with '#' are skipped. Optional column V_since: when the row's V took effect (s, same
-// clock as t, not after t), blank for "over the whole interval" (Sample::voltage_since).
+// clock as t, not after t), blank for "over the whole interval" (Sample::voltage_since). Optional
+// column I: the heater's current in A (Sample::current), blank or nan for "not measured".
 //
 // Values are parsed with std::from_chars (no locale: the decimal separator is always '.').
 // A blank xdot field or `nan` means "not measured" (NaN). NaN or ±inf in x, T or V are loaded

@@ -32,8 +32,8 @@ double Sensors::read(const Plant& plant, double voltage, double applied, Sample&
   out.xdot = measure_xdot_ ? xdot : kNotMeasured;
   out.temperature = plant.sensed_tbar() + ambient_c_ + noise(noise_temperature_);
   out.voltage = voltage + noise(noise_voltage_);
-  if (!measure_current_) return kNotMeasured;
-  return plant.current(applied) + current_noise();
+  out.current = measure_current_ ? plant.current(applied) + current_noise() : kNotMeasured;
+  return out.current;
 }
 
 }  // namespace scp::drivers::sim

@@ -17,9 +17,10 @@ class Sensors {
  public:
   explicit Sensors(const SimSettings& settings) noexcept;
 
-  // Fills x, ẋ, T and V of `out` (not t) from the plant at its present time. `voltage` is what the
-  // row reports as V; `applied` the voltage across the heater just before this instant, which
-  // drives the current. Returns the current reading in A, NaN when the channel is off.
+  // Fills x, ẋ, T, V and the current of `out` (not t) from the plant at its present time.
+  // `voltage` is what the row reports as V; `applied` the voltage across the heater just before
+  // this instant, which drives the current. Returns the current reading in A, NaN when the
+  // channel is off.
   double read(const Plant& plant, double voltage, double applied, Sample& out) noexcept;
 
  private:

@@ -59,8 +59,8 @@ class SimDriver final : public Driver {
 
   const Plant& plant() const noexcept { return plant_; }
   double command() const noexcept { return command_; }
-  // The heater current read with the latest sample (A), NaN when settings().measure_current is
-  // false. Not in Sample yet: the driver map has no current channel.
+  // The heater current read with the latest sample (A, Sample::current), NaN when
+  // settings().measure_current is false.
   double current() const noexcept { return current_; }
 
  private:

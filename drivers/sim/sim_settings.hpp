@@ -51,7 +51,7 @@ struct SimSettings {
   // The displacement sensor's zero, m: it reads x + x_zero (x = 0 is the rest position at the
   // true ambient).
   double x_zero = 0;
-  // A heater-current channel, I = V/R(T̄) (SimDriver::current()), with Gaussian noise in A.
+  // A heater-current channel, I = V/R(T̄) (Sample::current), with Gaussian noise in A.
   bool measure_current = false;
   double noise_current = 0;
   // A step of one physical parameter (for tests of the health monitor): at loop time at_s the

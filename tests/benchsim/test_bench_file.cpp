@@ -91,6 +91,7 @@ TEST(BenchFile, ColumnsRoundTripThroughTheReplayReader) {
     ASSERT_TRUE(table.rows[k][table.column("xdot")].empty());
     ASSERT_EQ(s.voltage_since, -std::numeric_limits<double>::infinity());  // the whole interval
     ASSERT_TRUE(std::isfinite(table.at(k, "I")));
+    ASSERT_EQ(s.current, table.at(k, "I")) << k;
   }
 }
 

@@ -97,6 +97,25 @@ TEST(CanDriver, WithoutReadbackTheLastCommandIsReported) {
   EXPECT_EQ(out.voltage, 1.25);
 }
 
+// The heater's current, where the layout has it (1 mA, signed 16 bits in frame 0x102): the
+// node's simulated DAQ measures V/R of its plant (Table I: R = 1 Ω); absent, it is NaN.
+TEST(CanDriver, TheHeaterCurrentArrivesWhereTheLayoutHasIt) {
+  CanSettings s = default_can_settings();
+  s.current.present = true;
+  sim::SimSettings sim;
+  sim.measure_current = true;
+  Bench b(s, sim);
+  Sample out;
+  for (int k = 0; k < 5; ++k) {
+    ASSERT_EQ(b.cycle(k, out).status, IoStatus::ok) << k;
+    ASSERT_EQ(b.driver->write_voltage(1.5).status, IoStatus::ok);
+  }
+  EXPECT_NEAR(out.current, 1.5, 0.51e-3);
+  Bench plain;
+  ASSERT_EQ(plain.cycle(0, out).status, IoStatus::ok);
+  EXPECT_TRUE(std::isnan(out.current));
+}
+
 TEST(CanDriver, SilentPeerGoesStaleThenFails) {
   Bench b;
   Sample out;

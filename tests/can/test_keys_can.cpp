@@ -67,6 +67,26 @@ TEST(KeysCan, OverlapNamesKeyAndLine) {
   EXPECT_NE(e.find("signals x and xdot share bits in frame 0x101"), std::string::npos) << e;
 }
 
+TEST(KeysCan, TheHeaterCurrentIsOptionalAndItsBitsAreChecked) {
+  EXPECT_FALSE(load("can: {}\n").current.present);
+  const CanSettings s = load(
+      "can:\n"
+      "  current: {present: true, frame_id: 0x103, start_bit: 0, length_bits: 16, signed: true,\n"
+      "            scale: 0.0001}\n");
+  EXPECT_TRUE(s.current.present);
+  EXPECT_EQ(s.current.frame_id, 0x103U);
+  EXPECT_DOUBLE_EQ(s.current.scale, 1e-4);
+  // In frame 0x102 on the temperature's bits.
+  const std::string e = error_of(
+      "can:\n"
+      "  current:\n"
+      "    present: true\n"
+      "    start_bit: 16\n");
+  EXPECT_NE(e.find("test.yaml:4"), std::string::npos) << e;
+  EXPECT_NE(e.find("signals temperature and current share bits in frame 0x102"), std::string::npos)
+      << e;
+}
+
 TEST(KeysCan, CommandIdClashNamesTheSensorKey) {
   const std::string e = error_of(
       "can:\n"

@@ -103,6 +103,49 @@ TEST_F(LoopTest, ClearFaultIsRefusedWhileTheCauseIsPresent) {
   EXPECT_EQ(s.state, RunState::running);
 }
 
+// A device that measures the heater's current: the current reaches the refinement; once
+// measured, a NaN current is a sensor fault and one above safety.current_max_a a limit fault.
+TEST_F(LoopTest, AMeasuredCurrentIsHandedOffAndCheckedLikeTheOtherSignals) {
+  testing::FakeDriver driver;
+  driver.next = {0.0, 1e-3, 0.0, 40.0, 1.5};
+  driver.next.current = 0.5;
+  auto handoff = std::make_unique<HandOffRing>();
+  make_loop(driver, handoff.get());
+  k_ = 1000;
+  step();
+  ASSERT_EQ(state().state, RunState::running);
+  HandOff h;
+  ASSERT_TRUE(handoff->try_pop(h));
+  EXPECT_DOUBLE_EQ(h.sample.current, 0.5);
+
+  driver.next.current = std::nan("");
+  step();
+  PublishedState s = state();
+  EXPECT_EQ(s.state, RunState::fault);
+  EXPECT_EQ(driver.last_written, 0.0);
+  EXPECT_NE(std::string(s.fault_reason.data()).find("heater current is not a finite number"),
+            std::string::npos)
+      << s.fault_reason.data();
+
+  driver.next.current = config_.safety.current_max_a * 2.0;
+  step();
+  command(CommandKind::clear_fault);
+  step();
+  s = state();
+  EXPECT_FALSE(s.last_ack.ok);  // the cause is still there: a current above the limit
+  EXPECT_NE(std::string(s.last_ack.message.data()).find("safety.current_max_a"), std::string::npos)
+      << s.last_ack.message.data();
+}
+
+// A device without a current channel (NaN from the first sample) runs as before.
+TEST_F(LoopTest, ACurrentNeverMeasuredIsNotRequired) {
+  testing::FakeDriver driver;
+  make_loop(driver);
+  k_ = 1000;
+  for (int i = 0; i < 5; ++i) step();
+  EXPECT_EQ(state().state, RunState::running);
+}
+
 TEST_F(LoopTest, DriverErrorAndStaleDataAreFaults) {
   testing::FakeDriver driver;
   make_loop(driver);

@@ -87,6 +87,38 @@ TEST(ModbusKeys, OverlapNamesBothSignalsAndTheLine) {
   EXPECT_NE(e.find("signals.x"), std::string::npos) << e;
 }
 
+// The heater's current is an optional signal like ẋ and the read-back: absent by default, read
+// where the map gives it, its mistakes named like the others'.
+TEST(ModbusKeys, TheHeaterCurrentIsAnOptionalSignal) {
+  EXPECT_FALSE(load("modbus:\n").current.present);
+  const ModbusSettings s = load(R"(modbus:
+  signals:
+    x: {address: 0, type: float32, word_order: ab}
+    temperature: {address: 2, type: float32, word_order: ab}
+    current: {address: 10, type: int16, scale: 0.001}
+)");
+  EXPECT_TRUE(s.current.present);
+  EXPECT_EQ(s.current.address, 10);
+  EXPECT_EQ(s.current.type, drivers::modbus::RegisterType::int16);
+  EXPECT_EQ(s.current.scale, 0.001);
+  std::string e = error_of(R"(modbus:
+  signals:
+    x: {address: 0, type: float32, word_order: ab}
+    temperature: {address: 2, type: float32, word_order: ab}
+    current: {address: 3, type: int16}
+)");
+  EXPECT_NE(e.find("test.yaml:5"), std::string::npos) << e;
+  EXPECT_NE(e.find("signals.current"), std::string::npos) << e;
+  EXPECT_NE(e.find("signals.temperature"), std::string::npos) << e;
+  e = error_of(R"(modbus:
+  signals:
+    x: {address: 0, type: float32, word_order: ab}
+    temperature: {address: 2, type: float32, word_order: ab}
+    current: {address: 10, type: int16, scale: 0}
+)");
+  EXPECT_NE(e.find("modbus.signals.current.scale"), std::string::npos) << e;
+}
+
 TEST(ModbusKeys, CommandChecks) {
   // 10 V / 0.0001 = 100000 does not fit int16.
   std::string e = error_of(R"(modbus:

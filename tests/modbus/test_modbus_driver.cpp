@@ -21,8 +21,8 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using test::ChildProcess;
 
-ModbusSettings settings_for(int port) {
-  config::Binder root = config::Binder::reading(YAML::Load(test::kSimdaqConfig), "test");
+ModbusSettings settings_for(int port, const char* yaml = test::kSimdaqConfig) {
+  config::Binder root = config::Binder::reading(YAML::Load(yaml), "test");
   config::Binder driver = root.section("driver", "");
   config::Binder m = driver.section("modbus", "");
   ModbusSettings s;
@@ -107,6 +107,46 @@ TEST_F(ModbusDriverTest, ValuesMatchThePlantAndTheCommandReachesIt) {
   ASSERT_TRUE(test::read_holding(port, 0, 2, regs.data()));
   EXPECT_EQ(regs[0], 0);
   EXPECT_EQ(regs[1], 0);
+}
+
+// scp-simdaq's map with the heater's current, which its simulated DAQ measures.
+constexpr const char* kCurrentConfig = R"(driver:
+  type: modbus
+  sim: {measure_current: true}
+  modbus:
+    transport: tcp
+    signals:
+      x: {table: input, address: 0, type: float32, word_order: ab}
+      temperature: {table: input, address: 2, type: float32, word_order: ab}
+      current: {table: input, address: 8, type: int16, scale: 0.0001}
+    command: {address: 0, type: float32, word_order: ab, min: 0, max: 10}
+)";
+
+// The heater's current decoded like the other signals: scp-simdaq serves V/R of its plant
+// (Table I: R = 1 Ω) through a 0.1 mA int16 register; absent from the map, it is not measured.
+TEST_F(ModbusDriverTest, TheHeaterCurrentIsDecodedWhereTheMapHasIt) {
+  const std::string config = test::temp_file(kCurrentConfig);
+  int port = 0;
+  auto daq = test::start_simdaq(config, port);
+  ModbusDriver driver(settings_for(port, kCurrentConfig), kPeriod);
+  driver.open();
+  ASSERT_EQ(driver.write_voltage(2.0).status, IoStatus::ok);
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  Sample s;
+  ASSERT_EQ(driver.read({0.2, kPeriod}, s).status, IoStatus::ok);
+  EXPECT_NEAR(s.current, 2.0, 1e-4);
+  EXPECT_TRUE(std::isnan(s.xdot));
+  driver.close();
+  daq.reset();
+  std::remove(config.c_str());
+
+  port = 0;
+  auto plain = test::start_simdaq(config_, port);
+  ModbusDriver without(settings_for(port), kPeriod);
+  without.open();
+  ASSERT_EQ(without.read({0.0, kPeriod}, s).status, IoStatus::ok);
+  EXPECT_TRUE(std::isnan(s.current));
+  without.close();
 }
 
 std::int64_t monotonic_ns() {

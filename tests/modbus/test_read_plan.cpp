@@ -124,7 +124,8 @@ TEST(CheckTiming, LineWarningsCountFramesAndSilences) {
   EXPECT_EQ(line.transactions, 2);
   EXPECT_NEAR(line.wire_s, read_s + write_s, 1e-9);
   EXPECT_NEAR(line.longest_exchange_s, std::max(read_s, write_s), 1e-9);
-  EXPECT_NEAR(line.silences_s, 2 * 1.75e-3, 1e-9);  // fixed above 19200 Bd
+  EXPECT_NEAR(line.longest_first_byte_s, (9 + 2 * 2 + 1) * char_s, 1e-9);  // function 16's
+  EXPECT_NEAR(line.silences_s, 2 * 1.75e-3, 1e-9);                         // fixed above 19200 Bd
 
   EXPECT_TRUE(line_timing_warnings(rtu_line(115200, 0.008), 0.020).empty());  // 2 x 8 + 3.5
   ModbusSettings tcp = rtu_line(115200, 0.010);
@@ -138,8 +139,10 @@ TEST(CheckTiming, LineWarningsCountFramesAndSilences) {
   const auto silences = line_timing_warnings(rtu_line(115200, 0.010), 0.020);  // 23.5 ms
   EXPECT_TRUE(only(silences, "t3.5 silences (3.5 ms)")) << silences[0];
   EXPECT_NE(silences[0].find("lower the timeout to 8.25 ms"), std::string::npos) << silences[0];
+  // The timeout bounds the wait for the reply's first character: the request's 13 and that one.
   const auto short_timeout = line_timing_warnings(rtu_line(115200, 0.001), 0.020);
-  EXPECT_TRUE(only(short_timeout, "shorter than the 1.82 ms")) << short_timeout[0];
+  EXPECT_TRUE(only(short_timeout, "shorter than the 1.22 ms")) << short_timeout[0];
+  EXPECT_TRUE(line_timing_warnings(rtu_line(115200, 0.0013), 0.020).empty());
   // 9600 Bd: the frames alone (43.8 ms) and the silences (7.3 ms) overrun a 20 ms period.
   const auto slow = line_timing_warnings(rtu_line(9600, 0.009), 0.020);
   ASSERT_EQ(slow.size(), 2u);

@@ -97,5 +97,48 @@ TEST(SensorLag, AnEstimatedLagIsRecoveredAndThetaStaysWithinItsSigma) {
   for (int i = 0; i < 6; ++i) EXPECT_LT(std::abs(r.theta[i] - truth[i]), 4.0 * r.sigma[i]) << i;
 }
 
+// A window short against the excitation's slow period cannot tell a lag from T̄0, the ambient's
+// terms and θ5 (refine/lag_hold.hpp): without one the fit holds it at 0 there and estimates it
+// once the window separates it; a real lag shows in the short window too and is estimated.
+FitResult fit_lag_free(double seconds, double lag, unsigned seed) {
+  const auto w =
+      test::with_noise(lagged_record(seconds, lag), {.x = 1e-7, .tbar = 1e-3, .seed = seed});
+  FitSettings s;
+  for (NuisanceSetting* term : {&s.nuisance.x_zero, &s.nuisance.ambient_offset,
+                                &s.nuisance.ambient_drift, &s.nuisance.sensor_lag})
+    term->fixed = false;
+  return fit(w, test::theta_of(test::paper_actuator()), s);
+}
+
+TEST(SensorLag, AShortWindowHoldsALagItCannotDetermineAndEstimatesOneItCan) {
+  const FitResult short_clean = fit_lag_free(40.0, 0.0, 43);
+  std::printf("40 s without a lag: %s, %d passes, held %d\n", short_clean.message,
+              short_clean.evaluations, short_clean.sensor_lag_held);
+  ASSERT_TRUE(short_clean.converged) << short_clean.message;
+  EXPECT_TRUE(short_clean.sensor_lag_held);
+  EXPECT_FALSE(short_clean.nuisance.sensor_lag.estimated);
+  EXPECT_EQ(short_clean.nuisance.sensor_lag.value, 0.0);
+
+  const FitResult short_lagged = fit_lag_free(40.0, kLag, 43);
+  std::printf("40 s with a %.1f s lag: %s, %d passes, lag %.5f (σ %.2g)\n", kLag,
+              short_lagged.message, short_lagged.evaluations,
+              short_lagged.nuisance.sensor_lag.value, short_lagged.nuisance.sensor_lag.sigma);
+  ASSERT_TRUE(short_lagged.converged) << short_lagged.message;
+  EXPECT_FALSE(short_lagged.sensor_lag_held);
+  EXPECT_TRUE(short_lagged.nuisance.sensor_lag.estimated);
+  EXPECT_NEAR(short_lagged.nuisance.sensor_lag.value, kLag,
+              4.0 * short_lagged.nuisance.sensor_lag.sigma);
+
+  const FitResult long_clean = fit_lag_free(120.0, 0.0, 43);
+  std::printf("120 s without a lag: %s, %d passes, lag %.3g (σ %.2g)\n", long_clean.message,
+              long_clean.evaluations, long_clean.nuisance.sensor_lag.value,
+              long_clean.nuisance.sensor_lag.sigma);
+  ASSERT_TRUE(long_clean.converged) << long_clean.message;
+  EXPECT_FALSE(long_clean.sensor_lag_held);
+  EXPECT_TRUE(long_clean.nuisance.sensor_lag.estimated);
+  EXPECT_LT(std::abs(long_clean.nuisance.sensor_lag.value),
+            4.0 * long_clean.nuisance.sensor_lag.sigma);
+}
+
 }  // namespace
 }  // namespace scp::refine

@@ -78,6 +78,36 @@ TEST(CsvTrace, VoltageSinceAfterItsSampleOrUnreadableNamesLineAndColumn) {
   EXPECT_NE(msg.find("appears twice"), std::string::npos) << msg;
 }
 
+TEST(CsvTrace, HeaterCurrentIsReadWhenRecordedAndBlankMeansNotMeasured) {
+  const TraceFile f(
+      "t,x,xdot,T,V,I\n"
+      "0.010,0,0,25,0,\n"
+      "0.020,0,0,25,1.5,0.75\n"
+      "0.030,0,0,25,1.5,nan\n"
+      "0.040,0,0,25,1.5,-inf\n");
+  const Trace t = load_trace(f.path());
+  ASSERT_EQ(t.rows.size(), 4u);
+  EXPECT_TRUE(std::isnan(t.rows[0].current));
+  EXPECT_EQ(t.rows[1].current, 0.75);
+  EXPECT_TRUE(std::isnan(t.rows[2].current));
+  // Loaded as-is, like x, T and V: the loop's safety check faults on it.
+  EXPECT_TRUE(std::isinf(t.rows[3].current) && t.rows[3].current < 0.0);
+  // Without the column the current is not measured.
+  const TraceFile plain("t,x,xdot,T,V\n0,0,0,25,0\n0.01,0,0,25,1\n");
+  EXPECT_TRUE(std::isnan(load_trace(plain.path()).rows[1].current));
+}
+
+TEST(CsvTrace, UnreadableCurrentNamesLineAndColumn) {
+  std::string msg = error_of("t,x,xdot,T,V,I\n0,0,0,25,0,0\n0.01,0,0,25,1,1,5\n");
+  EXPECT_NE(msg.find(":3:"), std::string::npos) << msg;  // one field too many
+  msg = error_of("t,x,xdot,T,V,I\n0,0,0,25,0,0\n0.01,0,0,25,1,1.2A\n");
+  EXPECT_NE(msg.find(":3:"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("column 'I' (field 6)"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("current"), std::string::npos) << msg;
+  msg = error_of("t,x,xdot,T,V,I,I\n0,0,0,25,0,,\n0.01,0,0,25,1,,\n");
+  EXPECT_NE(msg.find("appears twice"), std::string::npos) << msg;
+}
+
 TEST(CsvTrace, InfinityLoadedAsIs) {
   const TraceFile f("t,x,xdot,T,V\n0,0,0,25,0\n0.5,inf,0,25,-inf\n");
   const Trace t = load_trace(f.path());

@@ -35,8 +35,8 @@ using modbus::Table;
 bool encode_sample(const modbus::ModbusSettings& map, const Sample& sample,
                    std::uint16_t* input_registers, int n_input, std::uint16_t* holding_registers,
                    int n_holding) noexcept {
-  const std::array<double, modbus::kSignalCount> values = {sample.x, sample.xdot,
-                                                           sample.temperature, sample.voltage};
+  const std::array<double, modbus::kSignalCount> values = {
+      sample.x, sample.xdot, sample.temperature, sample.voltage, sample.current};
   const auto sigs = modbus::signals_of(map);
   bool all_fit = true;
   for (std::size_t i = 0; i < modbus::kSignalCount; ++i) {

@@ -80,6 +80,7 @@ struct RefinedView {
   scp::refine::VoltageInterval voltage_interval = scp::refine::VoltageInterval::before;
   scp::refine::Nuisance nuisance;
   scp::refine::Extensions extensions;
+  scp::refine::HeaterResistance heater;  // measured: the thermal input was the measured power
   bool validated = false;
   scp::refine::ValidationReport validation;
   bool paper_validated = false;

@@ -90,6 +90,7 @@ void copy_result(const scp::refine::FitResult& r, RefinedView& v) noexcept {
   v.voltage_interval = r.voltage_interval;
   v.nuisance = r.nuisance;
   v.extensions = r.extensions;
+  v.heater = r.heater;
   v.validated = r.validated;
   v.validation = r.validation;
   v.message.fill('\0');

@@ -26,7 +26,7 @@ constexpr const char* kHeader =
     "refined_theta_hat5,refined_theta_hat6,refined_sigma1,refined_sigma2,refined_sigma3,"
     "refined_sigma4,refined_sigma5,refined_sigma6,refined_converged,best,"
     "paper_biased_mechanical,paper_biased_thermal,unix_ns,xdot_source,V_since,"
-    "refined_verdict_mechanical,refined_verdict_thermal\n";
+    "refined_verdict_mechanical,refined_verdict_thermal,I\n";
 
 // <directory>/<actuator>-20261123T083000.123Z.csv: names sort in time order.
 std::string recording_name(const std::string& directory, const std::string& actuator) {
@@ -301,6 +301,8 @@ void Recorder::write_row(const RecordRow& r) {
                               : "");
   put_text(refined_.validated ? scp::refine::verdict_name(refined_.validation.thermal.verdict)
                               : "");
+  // The heater's current, empty when the device does not measure it (a replay reads it back).
+  std::isfinite(r.current) ? put(r.current) : put_text("");
   out[-1] = '\n';
   const auto size = static_cast<std::size_t>(out - line);
   if (rotating_) {

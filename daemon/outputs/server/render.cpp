@@ -158,6 +158,15 @@ void put_bench_terms(json& o, const refine::RefinedView& r) {
     extensions[name] = t;
   }
   if (!extensions.empty()) o["extensions"] = extensions;
+  if (r.heater.measured) {
+    // The thermal input was the measured power V·I (refine/heater_power.hpp).
+    json heater = {{"input", "measured_power"}};
+    put_finite(heater, "r0_ohm", r.heater.r0_ohm);
+    put_finite(heater, "r0_sigma_ohm", r.heater.r0_sigma_ohm);
+    put_finite(heater, "rho", r.heater.rho);
+    put_finite(heater, "rho_sigma", r.heater.rho_sigma);
+    o["heater"] = heater;
+  }
 }
 
 // The members the refinement adds to ESTIMATE: "paper_biased", "best", "best_reason" and, once a

@@ -22,7 +22,7 @@ inline constexpr int kProtoMajor = 1;
 // 1.6: best none and best_reason, paper_validation, refined.validation, voltage_interval,
 // nuisance and extensions (issue 28); `health` in STATUS and ESTIMATE; requests health,
 // health-ack, baseline-show, baseline-save, baseline-clear (issue 30; docs/protocol.md).
-inline constexpr int kProtoMinor = 7;
+inline constexpr int kProtoMinor = 8;
 
 std::string render_version(std::string_view release);
 std::string render_error(std::string_view message);

@@ -147,8 +147,8 @@ void declare_options(CLI::App& app, Options& o) {
       ->type_name("FILE|DIR ...")
       ->needs(offline);
   app.add_option("--jobs", o.batch.jobs,
-                 "batch run: fits made at once on worker threads beside the loop (default: one "
-                 "per core; 1 = inline between the loop's cycles)")
+                 "batch run: fits made at once on worker threads beside the loop (default 1: "
+                 "inline between the loop's cycles)")
       ->type_name("N")
       ->check(CLI::Range(1U, 256U))
       ->needs(offline);
