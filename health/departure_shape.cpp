@@ -49,18 +49,6 @@ bool DepartureShape::is_drift(double margin) const noexcept {
   return ramp_fits_better && !jump_significant;
 }
 
-bool DepartureShape::is_lagging_drift(double margin) const noexcept {
-  if (!step.valid || !level.valid || !trend.valid) return false;
-  const bool as_good_as_a_step = trend.sse <= step.sse + margin * noise_scale;
-  const bool slope_significant = level.sse - trend.sse > margin * noise_scale;
-  return as_good_as_a_step && slope_significant && trend.jump * trend.slope > 0.0;
-}
-
-double DepartureShape::drift_slope(double margin) const noexcept {
-  if (is_drift(margin)) return ramp.slope;
-  return is_lagging_drift(margin) ? trend.slope : 0.0;
-}
-
 DepartureShape fit_departure(std::span<const ScoreBlock> blocks, int parameter, double cusum_onset,
                              double search_before_s) {
   DepartureShape shape;
@@ -72,12 +60,6 @@ DepartureShape fit_departure(std::span<const ScoreBlock> blocks, int parameter, 
     ++shape.blocks;
   }
   if (shape.blocks == 0) return shape;
-  for (const auto& b : blocks)
-    if (b.information(parameter, parameter) > 0.0) {
-      shape.level = fit_at(blocks, parameter, b.t_begin, total, true, false);
-      shape.trend = fit_at(blocks, parameter, b.t_begin, total, true, true);
-      break;
-    }
   const auto keep_best = [](ShapeFit& best, const ShapeFit& f) {
     if (f.valid && (!best.valid || f.sse < best.sse)) best = f;
   };

@@ -12,13 +12,6 @@
 // varies with the excitation from block to block, and then weighted residual sums are far above
 // their χ² (the b/m +10 % of a daemon run: ~1e6 over ~200 blocks), so a fixed margin in absolute
 // units would call whichever shape happens to bend with the misfit.
-//
-// A drift already under way when the reference was made (a reference without a slope, the first
-// window after a baseline or a change) leaves no blocks at zero before it: the departure is a
-// linear trend a + r·t over every block (Basseville and Nikiforov's composite hypothesis of a
-// linear change against a step of unknown onset). It is a drift when that trend explains the
-// blocks as well as the best step, its slope is significant against a constant offset (a step at
-// the first block), and the offset lies in the slope's direction (a reference lagging behind).
 
 #include <span>
 
@@ -36,17 +29,12 @@ struct ShapeFit {
 
 struct DepartureShape {
   ShapeFit step, ramp, jump_ramp;
-  ShapeFit level, trend;     // a constant and a + r·t over every block (from the first block)
   int blocks = 0;            // blocks that observe the parameter
   double noise_scale = 1.0;  // σ̂² = max(1, jump_ramp.sse/(blocks − 3))
 
   // The ramp beats the step by `margin`·σ̂², and a jump in the departure's direction does not
   // improve the ramp by `margin`·σ̂² (χ²₁ quantiles are the natural margins).
   bool is_drift(double margin) const noexcept;
-  // A linear trend through every block, as well as any step and with a significant slope.
-  bool is_lagging_drift(double margin) const noexcept;
-  // The slope of whichever drift shape holds (0 for none).
-  double drift_slope(double margin) const noexcept;
 };
 
 // `blocks` oldest first. The onsets searched are the blocks' starts from `search_before_s` before

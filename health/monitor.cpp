@@ -120,7 +120,6 @@ HealthMonitor::Prediction HealthMonitor::predict(double t, double data_before) c
     p.fit.valid = true;
     p.fit.windows = 1;
     p.fit.t_eval = t;
-    p.fit.center = t;
     p.fit.level = baseline_.theta;
     p.fit.level_covariance = baseline_.covariance;
     p.from_baseline = true;
@@ -279,10 +278,7 @@ void HealthMonitor::update_drift(const WindowEstimate& w) {
       drift_clear_since_ = std::numeric_limits<double>::quiet_NaN();
     } else {
       if (!(drift_clear_since_ <= w.t_end)) drift_clear_since_ = w.t_end;
-      if (w.t_end - drift_clear_since_ >= w.length()) {
-        drift_armed_ = true;
-        has_accepted_slope_ = false;
-      }
+      if (w.t_end - drift_clear_since_ >= w.length()) drift_armed_ = true;
     }
     return;
   }
@@ -295,7 +291,6 @@ void HealthMonitor::raise_drift(double t, const std::array<ParameterTrend, kPara
                                 double onset, int parameter) {
   drift_armed_ = false;
   drift_clear_since_ = std::numeric_limits<double>::quiet_NaN();
-  accept_drift(trend);
   ++report_.drifts;
   HealthEvent e;
   e.kind = EventKind::drift;
@@ -307,12 +302,6 @@ void HealthMonitor::raise_drift(double t, const std::array<ParameterTrend, kPara
   if (report_.state == State::ok) set_state(State::drift, t);
   e.state = report_.state;
   events_.push_back(e);
-}
-
-void HealthMonitor::accept_drift(const std::array<ParameterTrend, kParams>& trend) {
-  has_accepted_slope_ = true;
-  for (int i = 0; i < kParams; ++i)
-    accepted_slope_[i] = trend[i].drifting ? trend[i].per_hour / 3600.0 : 0.0;
 }
 
 void HealthMonitor::raise_change(const ChangePoint& change) {
@@ -342,7 +331,6 @@ void HealthMonitor::start_segment(double onset, double t) {
   have_last_test_ = false;
   for (auto& c : cusums_) c.reset();
   alarm_waits_ = 0;
-  alarm_held_ = false;
   innovation_.clear();
   accumulator_.restart();
   recent_blocks_.clear();

@@ -196,15 +196,6 @@ class HealthMonitor {
   void raise_name(const ChangePoint& change);
   double naming_start(double onset) const;
   NamingSettings naming_settings() const;
-  struct DriftShape {
-    int parameter = -1;  // none
-    bool lagging = false;
-    double slope = 0.0;  // θ units per second
-    double start = 0.0;
-    bool step_testable = false;
-    ShapeFit step;  // the isolated parameter's
-  };
-  DriftShape drift_shape(int parameter, double onset) const;
   bool late_drift(int parameter, double& onset);
   double step_onset(int parameter, double cusum_onset) const;
   bool blocks_show_drift(int parameter, double onset, ShapeFit& ramp) const;
@@ -213,7 +204,6 @@ class HealthMonitor {
   void raise_drift(double t, const std::array<ParameterTrend, kParams>& trend, double onset,
                    int parameter);
   void start_segment(double onset, double t);
-  void accept_drift(const std::array<ParameterTrend, kParams>& trend);
   void confirm_pending(const WindowEstimate& w);
   void set_state(State state, double t);
   double window_onset_estimate(const WindowEstimate& w, int parameter, double delta) const;
@@ -256,14 +246,8 @@ class HealthMonitor {
 
   Reference reference_;
   TrendFit reference_fit_;  // reference_at() extrapolates its slope
-  // The slope of the latest drift raised (θ per second), until the slopes are clear again: a
-  // reference without a slope of its own (the first window after a change or a drift's restart)
-  // moves with it, so that the drift already accepted does not read as a step at each restart.
-  bool has_accepted_slope_ = false;
-  Vector6 accepted_slope_ = Vector6::Zero();
   std::array<TwoSidedCusum, kParams> cusums_;
-  int alarm_waits_ = 0;      // blocks an alarm has waited for evidence to name it (fast_alarm)
-  bool alarm_held_ = false;  // a fast alarm against a reference without a slope (fast_alarm)
+  int alarm_waits_ = 0;  // blocks an alarm has waited for evidence to name it (fast_alarm)
   // The blocks' scores with the reference's error estimated out (the CUSUMs' input).
   InnovationScores innovation_;
   BlockAccumulator accumulator_;

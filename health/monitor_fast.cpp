@@ -53,16 +53,6 @@ void HealthMonitor::update_reference(double t) {
     p.valid = true;
     p.fit = naming_.reference;
   }
-  // A level alone moves with the drift accepted last (its windows' data centred at `center`).
-  if (p.valid && !p.fit.with_slope && has_accepted_slope_) {
-    p.fit.level += accepted_slope_ * (p.fit.t_eval - p.fit.center);
-    p.fit.slope = accepted_slope_;
-    p.fit.with_slope = true;
-  }
-  if (alarm_held_ && p.valid && p.fit.with_slope) {
-    alarm_held_ = false;
-    for (auto& c : cusums_) c.reset();
-  }
   reference_.valid = p.valid;
   reference_fit_ = p.fit;
   if (!p.valid) {
@@ -146,65 +136,30 @@ void HealthMonitor::add_block(const ScoreBlock& block) {
 // A drift that starts late makes the reference lag behind it until the trend catches up: the
 // residual grows from zero where a step's jumps (departure_shape.hpp). A ramp that fits the
 // recent blocks' single-parameter estimates clearly better than a step, with no significant jump
-// at its start, raises `drift` from its start and starts a new segment there; so does a trend
-// through every block (a reference without a slope lagging behind a drift already under way),
-// whose windows stay. A step alarms within a few blocks of its onset, and over so few any
-// two-parameter shape fits: a ramp is tested only once kRampMinEvidenceSeconds follow the
-// onset, a trend once the blocks span as long (the innovations absorb a lagging reference's
-// offset before its slope shows, so the CUSUM's onset says nothing there). Otherwise `onset`
+// at its start, raises `drift` from its start and starts a new segment there. Otherwise `onset`
 // becomes the step fit's change point: the CUSUM's (where it last stood at zero) comes early
 // when the statistic crept up on the reference's error before the step, and the change summed
 // from there is diluted by the blocks before it.
-// The drift shape that the blocks show most clearly among the parameters (the isolated one's
-// single-parameter estimates can be a poor projection of another's drift: a b/m drift isolated
-// as a1/m leaves a misfit hundreds of times the noise), or none.
-HealthMonitor::DriftShape HealthMonitor::drift_shape(int parameter, double onset) const {
-  DriftShape best;
-  const double t = recent_blocks_.back().t_end;
-  const bool ramp_testable = t - onset >= kRampMinEvidenceSeconds;
-  const bool trend_testable = t - recent_blocks_.front().t_begin >= kRampMinEvidenceSeconds;
-  if (!ramp_testable && !trend_testable) return best;
-  double clearest = 0.0;
-  for (int k = 0; k < kParams; ++k) {
-    const int i = (parameter + k) % kParams;  // the isolated parameter first
-    const DepartureShape shape = fit_departure(recent_blocks_, i, onset, kRampSearchSeconds);
-    if (i == parameter) best.step = shape.step;
-    const bool ramp = ramp_testable && shape.is_drift(kRampMargin);
-    const bool lagging = !ramp && trend_testable && shape.is_lagging_drift(kRampMargin);
-    if (!ramp && !lagging) continue;
-    const double clarity = ramp ? (shape.step.sse - shape.ramp.sse) / shape.noise_scale
-                                : (shape.level.sse - shape.trend.sse) / shape.noise_scale;
-    if (clarity <= clearest) continue;
-    clearest = clarity;
-    best.parameter = i;
-    best.lagging = lagging;
-    best.slope = ramp ? shape.ramp.slope : shape.trend.slope;
-    best.start = ramp ? shape.ramp.onset : shape.trend.onset;
-  }
-  best.step_testable = ramp_testable;
-  return best;
-}
-
 bool HealthMonitor::late_drift(int parameter, double& onset) {
-  if (recent_blocks_.empty()) return false;
-  const DriftShape d = drift_shape(parameter, onset);
-  if (d.parameter < 0) {
-    if (d.step_testable && d.step.valid) onset = d.step.onset;
+  // A step alarms within a few blocks of its onset, and over so few any two-parameter shape
+  // fits: only an alarm that took longer to build up can be a drift.
+  if (recent_blocks_.empty() || recent_blocks_.back().t_end - onset < kRampMinEvidenceSeconds)
+    return false;
+  const DepartureShape shape = fit_departure(recent_blocks_, parameter, onset, kRampSearchSeconds);
+  if (!shape.is_drift(kRampMargin)) {
+    if (shape.step.valid) onset = shape.step.onset;
     return false;
   }
   std::array<ParameterTrend, kParams> trend{};
-  ParameterTrend& p = trend[d.parameter];
-  const double theta = std::abs(reference_at(d.start).theta[d.parameter]);
+  ParameterTrend& p = trend[parameter];
+  const double theta = std::abs(reference_at(shape.ramp.onset).theta[parameter]);
   p.tested = true;
-  p.per_hour = d.slope * 3600.0;
+  p.per_hour = shape.ramp.slope * 3600.0;
   p.relative_per_hour = theta > 0.0 ? p.per_hour / theta : 0.0;
   p.drifting = true;
   const double t = recent_blocks_.back().t_end;
-  if (drift_armed_) raise_drift(t, trend, d.start, d.parameter);
-  accept_drift(trend);
-  // A ramp from a start among the blocks: the windows before it leave the trends. A trend
-  // through every block: the drift was under way before them, and its windows stay.
-  start_segment(d.lagging ? segment_start_ : d.start, t);
+  if (drift_armed_) raise_drift(t, trend, shape.ramp.onset, parameter);
+  start_segment(shape.ramp.onset, t);
   return true;
 }
 
@@ -233,8 +188,8 @@ double HealthMonitor::step_onset(int parameter, double cusum_onset) const {
 bool HealthMonitor::blocks_show_drift(int parameter, double onset, ShapeFit& ramp) const {
   if (recent_blocks_.empty()) return false;
   const DepartureShape shape = fit_departure(recent_blocks_, parameter, onset, kRampSearchSeconds);
-  ramp = shape.is_drift(kRampMargin) ? shape.ramp : shape.trend;
-  return shape.drift_slope(kRampMargin) != 0.0;
+  ramp = shape.ramp;
+  return shape.is_drift(kRampMargin);
 }
 
 void HealthMonitor::fast_alarm(const ScoreBlock& block) {
@@ -259,21 +214,6 @@ void HealthMonitor::fast_alarm(const ScoreBlock& block) {
     for (auto& c : cusums_) c.reset();
     return;
   }
-  // A reference without a slope (a level: the first window after the baseline or a restart,
-  // before a drift was accepted) cannot tell a step from a drift it lags behind: the alarm is
-  // held until the reference has a slope, and the CUSUMs start again against it.
-  if (!reference_fit_.with_slope) {
-    alarm_held_ = true;
-    return;
-  }
-  // A departure from the first blocks kept on (a reference made just now) cannot tell a step
-  // near its start from a drift it lags behind: too few blocks before it fix the level it
-  // departs from. The alarm waits until kRampMinEvidenceSeconds of blocks follow the onset (the
-  // CUSUM stays above h after either), and the shapes decide (late_drift).
-  const double first = recent_blocks_.front().t_begin;
-  if (onset - first < kRampMinEvidenceSeconds &&
-      recent_blocks_.back().t_end - onset < kRampMinEvidenceSeconds)
-    return;
   if (late_drift(iso.parameter, onset)) return;
   // Which parameter: from the blocks after the onset's, with the nuisance (naming.hpp). After
   // the CUSUM's change point's, not the step fit's: a thermal change's z grows with T̄'s

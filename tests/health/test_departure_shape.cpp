@@ -118,48 +118,10 @@ TEST(DepartureShape, ADriftThatStartsLateIsADrift) {
   }
 }
 
-// The reference a restart makes is a level at its window's midpoint: a plant drifting since long
-// before leaves the blocks after it an offset and a slope, no zeros before a start.
-TEST(DepartureShape, ADriftTheReferenceLagsBehindIsADrift) {
-  const double reference_time = 60.0, first = 120.0;  // one 120 s window's midpoint and end
-  for (std::uint64_t seed : {1u, 2u, 3u}) {
-    const auto blocks = simulated_blocks(
-        [&](double t) {
-          Vector6 th = test::paper_theta();
-          th[0] *= 1.0 + 0.2 * (t - reference_time) / 3600.0;
-          return th;
-        },
-        first, first + 22.0, seed);
-    const DepartureShape shape = fit_departure(blocks, 0, first, 600.0);
-    EXPECT_FALSE(shape.is_drift(kMargin)) << seed;  // no start among the blocks
-    EXPECT_TRUE(shape.is_lagging_drift(kMargin)) << seed;
-    EXPECT_NEAR(shape.drift_slope(kMargin) * 3600.0 / test::paper_theta()[0], 0.2, 0.05) << seed;
-  }
-}
-
-TEST(DepartureShape, AStepAtTheFirstBlockIsNotALaggingDrift) {
-  // b/m +10 % and +2 % (the smallest change named) in the first block after a new reference.
-  const double first = 120.0;
-  for (const double factor : {1.1, 1.02})
-    for (std::uint64_t seed : {1u, 2u, 3u}) {
-      const auto blocks = simulated_blocks(
-          [&](double t) {
-            Vector6 th = test::paper_theta();
-            if (t >= first + 0.5) th[0] *= factor;
-            return th;
-          },
-          first, first + 22.0, seed);
-      const DepartureShape shape = fit_departure(blocks, 0, first, 600.0);
-      EXPECT_FALSE(shape.is_lagging_drift(kMargin)) << factor << " " << seed;
-      EXPECT_EQ(shape.drift_slope(kMargin), 0.0) << factor << " " << seed;
-    }
-}
-
 TEST(DepartureShape, NoBlocksNoShape) {
   const DepartureShape shape = fit_departure({}, 0, 0.0, 10.0);
   EXPECT_EQ(shape.blocks, 0);
   EXPECT_FALSE(shape.is_drift(kMargin));
-  EXPECT_FALSE(shape.is_lagging_drift(kMargin));
 }
 
 }  // namespace
