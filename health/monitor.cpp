@@ -219,15 +219,12 @@ void HealthMonitor::test_against_reference(const WindowEstimate& w) {
 }
 
 // A step ∆ at τ inside a window [t_end − L, t_end] moves its θ̂ by ∆·(t_end − τ)/L: linear in
-// t_end, zero at τ. Two consecutive tests give τ; a CUSUM already on the way gives its own
-// change point, which is sharper.
+// t_end, zero at τ. Two consecutive tests give τ. (Not a CUSUM's change point: a step the fast
+// detector sees has raised its alarm long before a window, and a CUSUM on the innovations that
+// stands above zero without alarming is as likely a chance excursion as a start; under a drift
+// that started late such an onset tipped the shape test to a step.)
 double HealthMonitor::window_onset_estimate(const WindowEstimate& w, int parameter,
                                             double delta) const {
-  int strongest = 0;
-  for (int i = 1; i < kParams; ++i)
-    if (cusums_[i].ratio() > cusums_[strongest].ratio()) strongest = i;
-  if (report_.fast.active && cusums_[strongest].ratio() > 0.5)
-    return std::clamp(cusums_[strongest].onset(), w.t_begin, w.t_end);
   if (!have_last_test_) return w.t_begin;
   const double previous = last_test_delta_[parameter];
   const double step = delta - previous;
@@ -333,8 +330,11 @@ void HealthMonitor::start_segment(double onset, double t) {
   std::erase_if(history_, [&](const WindowEstimate& h) { return h.t_begin < segment_start_; });
   have_last_test_ = false;
   for (auto& c : cusums_) c.reset();
+  alarm_waits_ = 0;
+  innovation_.clear();
   accumulator_.restart();
   recent_blocks_.clear();
+  recent_z_.clear();
   update_reference(t);
 }
 

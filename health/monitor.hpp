@@ -4,11 +4,12 @@
 // loop times, refined windows and residual samples, and reads a report and a list of events.
 //
 // Three detectors share one false-alarm budget (HealthSettings::false_alarm_days, a third each):
-// - fast: a two-sided CUSUM per parameter on the residuals' efficient scores (score_blocks.hpp),
-//   thresholds from Siegmund's ARL (cusum.hpp); at an alarm its change-point estimate is the
-//   onset, and the parameter is named once the residuals after it separate it from the other
-//   candidates (naming.hpp) or the first window after the onset does (an event `named`);
-//   until then the change carries its candidates.
+// - fast: a two-sided CUSUM per parameter on the residuals' efficient scores (score_blocks.hpp)
+//   with the reference's error estimated out by the residuals (their innovations,
+//   innovation.hpp), thresholds from Siegmund's ARL (cusum.hpp); at an alarm its change-point
+//   estimate is the onset, and the parameter is named once the residuals after it separate it
+//   from the other candidates (naming.hpp) or the first window after the onset does (an event
+//   `named`); until then the change carries its candidates.
 // - sure: each refined window against the reference, a Wald χ² per block and a z per parameter
 //   (wald.hpp), thresholds from the crossing rate of the overlapping windows' χ² process
 //   (scan_threshold.hpp).
@@ -37,10 +38,13 @@
 // have stayed within bounds for a window length and then left them again.
 
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "health/cusum.hpp"
+#include "health/departure_shape.hpp"
 #include "health/indicators.hpp"
+#include "health/innovation.hpp"
 #include "health/naming.hpp"
 #include "health/score_blocks.hpp"
 #include "health/settings.hpp"
@@ -193,6 +197,8 @@ class HealthMonitor {
   double naming_start(double onset) const;
   NamingSettings naming_settings() const;
   bool late_drift(int parameter, double& onset);
+  double step_onset(int parameter, double cusum_onset) const;
+  bool blocks_show_drift(int parameter, double onset, ShapeFit& ramp) const;
   void raise_change(const ChangePoint& change);
   void push_change_event(EventKind kind, const ChangePoint& change);
   void raise_drift(double t, const std::array<ParameterTrend, kParams>& trend, double onset,
@@ -241,9 +247,13 @@ class HealthMonitor {
   Reference reference_;
   TrendFit reference_fit_;  // reference_at() extrapolates its slope
   std::array<TwoSidedCusum, kParams> cusums_;
+  int alarm_waits_ = 0;  // blocks an alarm has waited for evidence to name it (fast_alarm)
+  // The blocks' scores with the reference's error estimated out (the CUSUMs' input).
+  InnovationScores innovation_;
   BlockAccumulator accumulator_;
-  std::vector<ScoreBlock> recent_blocks_;       // for the isolation since an onset, oldest first
-  Matrix6 mean_information_ = Matrix6::Zero();  // per block, running mean
+  std::vector<ScoreBlock> recent_blocks_;  // for the isolation since an onset, oldest first
+  std::vector<std::pair<double, Vector6>> recent_z_;  // their start and the CUSUMs' input
+  Matrix6 mean_information_ = Matrix6::Zero();        // per block, running mean
   std::uint64_t information_blocks_ = 0;
 
   HealthReport report_;

@@ -25,7 +25,7 @@ struct Deviation {
   double t_end, value;
 };
 
-struct ShapeFit {
+struct WindowShapeFit {
   double sse = 1e300, onset = 0.0, amplitude = 0.0;
 };
 
@@ -35,9 +35,9 @@ double shape(bool step, double u, double length) {
   return u <= length ? u * u / (2.0 * length) : u - 0.5 * length;
 }
 
-ShapeFit fit_shape(bool step, const std::vector<Deviation>& d, double length, double first,
-                   double last) {
-  ShapeFit best;
+WindowShapeFit fit_shape(bool step, const std::vector<Deviation>& d, double length, double first,
+                         double last) {
+  WindowShapeFit best;
   double total = 0.0;
   for (const auto& x : d) total += x.value * x.value;
   for (double s = first; s <= last; s += kOnsetGridSeconds) {
@@ -71,9 +71,12 @@ void HealthMonitor::confirm_pending(const WindowEstimate& w) {
   }
   pending_.active = false;
   const double first = candidate.onset - length, last = w.t_end - 0.5 * length;
-  const ShapeFit step = fit_shape(true, d, length, first, last);
-  const ShapeFit drift = fit_shape(false, d, length, first, last);
-  if (step.sse <= drift.sse) {
+  const WindowShapeFit step = fit_shape(true, d, length, first, last);
+  WindowShapeFit drift = fit_shape(false, d, length, first, last);
+  ShapeFit ramp;
+  const bool blocks_drift = blocks_show_drift(i, candidate.onset, ramp);
+  if (blocks_drift) drift = {0.0, ramp.onset, ramp.slope};
+  if (!blocks_drift && step.sse <= drift.sse) {
     ChangePoint c = candidate;
     c.onset = step.onset;
     c.detected_at = w.t_end;
