@@ -167,7 +167,12 @@ struct ValidationReport {
   const BlockReport& block(ValidationBlock b) const {
     return b == ValidationBlock::kMechanical ? mechanical : thermal;
   }
-  const TestOutcome& outcome(ValidationTest t) const { return tests[static_cast<int>(t)]; }
+  // A test's outcome; for ValidationTest::kNone (a block no test decided) one never performed.
+  const TestOutcome& outcome(ValidationTest t) const {
+    static constexpr TestOutcome kNotPerformed{};
+    const int i = static_cast<int>(t);
+    return i >= 0 && i < kValidationTests ? tests[static_cast<std::size_t>(i)] : kNotPerformed;
+  }
 };
 
 // The slowest time constant of the mechanical block (1/min |Re λ| of s² + (θ1 + θ2T̄)s + θ3) and
