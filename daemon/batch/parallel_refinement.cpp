@@ -222,7 +222,7 @@ void ParallelRefinement::drain(HandOffRing& ring) {
   if (shadow_->view().windows != window_) {
     window_ = shadow_->view().windows;
     fitted_in_window_ = false;
-    stalled_wait_s_ = 0.0;
+    rejected_wait_s_ = 0.0;
   }
 }
 
@@ -235,8 +235,8 @@ bool ParallelRefinement::due_by_interval() const noexcept {
 }
 
 bool ParallelRefinement::stall_waits() const noexcept {
-  return stalled_wait_s_ > 0.0 &&
-         shadow_->window().back().t - stalled_t_end_ + tolerance_s_ < stalled_wait_s_;
+  return rejected_wait_s_ > 0.0 &&
+         shadow_->window().back().t - stalled_t_end_ + tolerance_s_ < rejected_wait_s_;
 }
 
 void ParallelRefinement::after_cycle(HandOffRing& ring, double t,
@@ -247,7 +247,7 @@ void ParallelRefinement::after_cycle(HandOffRing& ring, double t,
   // order in which the lanes finish never matters. After a fit that stalled, until one that does
   // not, the fits are made one at a time, each knowing the one before: on data the model does not
   // explain the wait then applies as inline, and costs one fit made too early, not N - 1 per stall.
-  const std::uint64_t ahead = stalled_wait_s_ > 0.0 ? 1 : lanes_.size();
+  const std::uint64_t ahead = rejected_wait_s_ > 0.0 ? 1 : lanes_.size();
   if (dispatched_ >= ahead) apply_through(dispatched_ - ahead);
   if (stall_waits()) return;
   make_fit(t, paper);
@@ -326,7 +326,7 @@ void ParallelRefinement::apply_next() {
   // The stall rule of Refiner::fit, for the fits made from now on in the same window.
   const bool stalled = lane.fit.stop == scp::refine::StopReason::stalled && made.window == window_;
   stalled_t_end_ = made.t_end;
-  stalled_wait_s_ = stalled ? std::min(lane.fit.t_end - lane.fit.t_begin, settings_.window_s) : 0.0;
+  rejected_wait_s_ = stalled ? std::min(lane.fit.t_end - lane.fit.t_begin, settings_.window_s) : 0.0;
   if (applied_cb_) applied_cb_(view_);
   {
     std::lock_guard lock(mutex_);

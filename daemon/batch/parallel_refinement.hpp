@@ -97,7 +97,7 @@ class ParallelRefinement {
   bool fitted_in_window_ = false;
   double last_fit_t_end_ = 0.0;
   // The latest applied fit stalled in the current window: its last sample and the wait.
-  double stalled_t_end_ = 0.0, stalled_wait_s_ = 0.0;
+  double stalled_t_end_ = 0.0, rejected_wait_s_ = 0.0;
   double last_front_t_ = 0.0;  // the first sample of the last fit's window
   refine::RefinedView view_{};
 

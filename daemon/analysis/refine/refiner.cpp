@@ -152,7 +152,7 @@ void Refiner::accept(const HandOff& handoff) noexcept {
     window_.clear();
     warm_held_ = false;
     fitted_in_window_ = false;
-    stalled_wait_s_ = 0.0;
+    rejected_wait_s_ = 0.0;
     ++view_.windows;
   }
   started_ = true;
@@ -189,7 +189,7 @@ bool Refiner::due() const noexcept {
   if (!window_ready()) return false;
   if (!fitted_in_window_) return true;
   return window_.back().t - last_fit_t_end_ + tolerance_s_ >=
-         std::max(settings_.interval_s, stalled_wait_s_);
+         std::max(settings_.interval_s, rejected_wait_s_);
 }
 
 bool Refiner::has_unfitted_data() const noexcept {
@@ -318,7 +318,7 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   // A window the model cannot explain: refitting one that is mostly the same data would end the
   // same way, at the cost of a whole budget (hundreds of passes) each interval. The next attempt
   // waits until the window has doubled, or once full, renewed.
-  stalled_wait_s_ = model_rejected(r) ? std::min(r.t_end - r.t_begin, settings_.window_s) : 0.0;
+  rejected_wait_s_ = model_rejected(r) ? std::min(r.t_end - r.t_begin, settings_.window_s) : 0.0;
   // The next fit's warm start, whether or not this one converged (refine::fit declines one that
   // did not, and says so). None on a link whose timing the fit estimates: a warm refit would hold
   // the voltage's delay at the previous fit's and has not been shown sound beside the jitter and

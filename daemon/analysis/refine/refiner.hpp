@@ -117,7 +117,7 @@ class Refiner {
   double last_fit_t_end_ = 0.0;
   // After a fit whose model the window rejected: loop time the next fit waits for instead of
   // interval_s, when longer.
-  double stalled_wait_s_ = 0.0;
+  double rejected_wait_s_ = 0.0;
   bool have_converged_ = false;
   Vector6 last_converged_ = Vector6::Zero();
   // The latest fit as a warm start (refine/warm_start.hpp), its trajectory stepped along as the
