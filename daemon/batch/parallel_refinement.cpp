@@ -326,7 +326,8 @@ void ParallelRefinement::apply_next() {
   // The stall rule of Refiner::fit, for the fits made from now on in the same window.
   const bool stalled = lane.fit.stop == scp::refine::StopReason::stalled && made.window == window_;
   stalled_t_end_ = made.t_end;
-  rejected_wait_s_ = stalled ? std::min(lane.fit.t_end - lane.fit.t_begin, settings_.window_s) : 0.0;
+  rejected_wait_s_ =
+      stalled ? std::min(lane.fit.t_end - lane.fit.t_begin, settings_.window_s) : 0.0;
   if (applied_cb_) applied_cb_(view_);
   {
     std::lock_guard lock(mutex_);
