@@ -28,6 +28,18 @@ class SensorLag {
     }
   }
 
+  // Carries on from a reading `y` at the model's T̄ = `tbar` (a simulation restarted from a
+  // state; ∂T̄/∂p `dtbar`, or null): the reading's history before the restart is taken to have
+  // no sensitivity beyond T̄'s own, as the restarted state's.
+  void resume(double y, double tbar, const ParamVector* dtbar) noexcept {
+    y_ = y;
+    tbar_ = tbar;
+    if (dtbar != nullptr) {
+      dy_ = dtbar_ = *dtbar;
+      dy_[kSensorLagSlot] = 0.0;
+    }
+  }
+
   // The reading after `dt` s at the model's T̄ = `tbar` (∂T̄/∂p `dtbar`, or null).
   double advance(double dt, double tbar, const ParamVector* dtbar) noexcept {
     if (!(tau_ > 0.0)) {

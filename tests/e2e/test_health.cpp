@@ -71,6 +71,20 @@ TEST(Health, CleanRunStaysOk) {
   EXPECT_GE(s["refine"]["converged_fits"].get<int>(), 10) << s["refine"].dump();
 }
 
+// A clean plant whose temperature sensor lags by 0.3 s (a thermocouple in its sheath): the
+// refinement estimates the lag, and the monitor's residual model must run it too, or T̄'s residual
+// carries τs·dT̄/dt and the detectors take it for a thermal change within seconds of the baseline.
+TEST(Health, CleanRunWithALaggingTemperatureSensorStaysOk) {
+  TempDir dir;
+  json cfg = batch_config(dir.path(), "none", 1.0);
+  cfg["driver"]["sim"]["sensor"]["temperature_lag_s"] = 0.3;
+  const json s = run_batch(dir, cfg);
+  ASSERT_TRUE(s.contains("health")) << s.dump();
+  EXPECT_EQ(s["health"]["state"], "ok") << s["health"].dump();
+  EXPECT_TRUE(s["health_events"].empty()) << s["health_events"].dump();
+  EXPECT_GE(s["refine"]["converged_fits"].get<int>(), 10) << s["refine"].dump();
+}
+
 // Real time: short windows so that a fit converges within seconds.
 json socket_overrides() {
   return {{"refine", {{"window_s", 20}, {"interval_s", 2}, {"min_window_s", 5}}}};

@@ -82,26 +82,33 @@ void HealthRunner::feed(const scp::refine::WindowSample& sample) {
   if (reference.generation != generation_) {
     // The reference moved (a new window): carry on from the simulated state with the new θ.
     const scp::refine::ModelState s = simulator_->state();
-    simulator_.emplace(reference.theta, scp::refine::InitialState(s.x, s.xdot, s.tbar));
+    simulator_.emplace(reference.theta, scp::refine::InitialState(s.x, s.xdot, s.tbar), false,
+                       tempcos_);
+    if (lagged_) lag_.resume(lag_.reading(), s.tbar, &simulator_->dtbar());
     generation_ = reference.generation;
     ++segment_;
   }
+  const double dt = sample.t - last_sample_.t;
   simulator_->advance(last_sample_, sample, input_delay_);
   last_sample_ = sample;
   const scp::refine::ModelState& s = simulator_->state();
+  if (lagged_) lag_.advance(dt, s.tbar, &simulator_->dtbar());
+  // T̄ as the fit's sensor reads it (refine/sensor_lag.hpp), and its sensitivities.
+  const scp::refine::ParamVector& dtbar_read = lagged_ ? lag_.sensitivities() : simulator_->dtbar();
   const double x_model = s.x + x_zero_;
-  const double tbar_model = s.tbar + ambient_offset_ + ambient_drift_ * (sample.t - t0_);
+  const double tbar_model =
+      (lagged_ ? lag_.reading() : s.tbar) + ambient_offset_ + ambient_drift_ * (sample.t - t0_);
   const Vector2 residual((sample.x - x_model) * inverse_sigma_[0],
                          (sample.tbar - tbar_model) * inverse_sigma_[1]);
   Matrix26 sensitivity;
   sensitivity.row(0) = simulator_->dx().head<6>().transpose() * inverse_sigma_[0];
-  sensitivity.row(1) = simulator_->dtbar().head<6>().transpose() * inverse_sigma_[1];
+  sensitivity.row(1) = dtbar_read.head<6>().transpose() * inverse_sigma_[1];
   // The nuisance: the state at the seed (the simulator's last three parameters) and the offsets.
   Matrix2N nuisance = Matrix2N::Zero();
   nuisance.row(0).head<3>() =
       simulator_->dx().segment<3>(scp::refine::kX0).transpose() * inverse_sigma_[0];
   nuisance.row(1).head<3>() =
-      simulator_->dtbar().segment<3>(scp::refine::kX0).transpose() * inverse_sigma_[1];
+      dtbar_read.segment<3>(scp::refine::kX0).transpose() * inverse_sigma_[1];
   nuisance(0, 3) = inverse_sigma_[0];
   nuisance(1, 4) = inverse_sigma_[1];
   if (!residual.allFinite() || !sensitivity.allFinite() || !nuisance.allFinite()) {
@@ -159,17 +166,27 @@ void HealthRunner::seed(const scp::refine::FitResult& fit,
   // The fitted model through its own window, to the state at its last sample.
   // Stepped, not refine::simulate: only the last state is wanted, and a state per sample of a
   // 300 s window would be 7 MB of locked memory.
+  // The temperature sensor's lag as the fit estimated it (or was told it) runs beside it, as in
+  // the fit's residuals: without it a lagging sensor's T̄ residual is τs·dT̄/dt, a systematic
+  // part the detectors would take for a change.
   scp::refine::ModelState state{fit.initial_state[0], fit.initial_state[1], fit.initial_state[2]};
   scp::refine::ThermalCache cache;
+  tempcos_ = scp::refine::tempcos_of(fit.extensions);
+  const double tau = fit.nuisance.sensor_lag.value;
+  lagged_ = std::isfinite(tau) && tau != 0.0;  // as the fit: τs < 0 is its first-order continuation
+  lag_ = scp::refine::SensorLag(lagged_ ? tau : 0.0);
+  lag_.start(state.tbar, nullptr);
   for (std::size_t i = 1; i < window.size(); ++i) {
     scp::refine::advance_interval(fit.theta, window[i - 1], window[i], fit.input_delay_s, state,
-                                  cache, nullptr, scp::refine::tempcos_of(fit.extensions));
+                                  cache, nullptr, tempcos_);
+    if (lagged_) lag_.advance(window[i].t - window[i - 1].t, state.tbar, nullptr);
   }
   const scp::health::Reference reference = monitor_->reference_at(window.back().t);
   if (!reference.valid) return;
   // The reference's θ with the fit's extensions (a baseline holds θ only).
   simulator_.emplace(reference.theta, scp::refine::InitialState(state.x, state.xdot, state.tbar),
-                     false, scp::refine::tempcos_of(fit.extensions));
+                     false, tempcos_);
+  if (lagged_) lag_.resume(lag_.reading(), state.tbar, &simulator_->dtbar());
   generation_ = reference.generation;
   ++segment_;
   last_sample_ = window.back();

@@ -19,6 +19,7 @@
 #include "health/monitor.hpp"
 #include "refine/model_simulator.hpp"
 #include "refine/sensitivities.hpp"
+#include "refine/sensor_lag.hpp"
 
 namespace scp::daemon::health {
 
@@ -68,6 +69,11 @@ class HealthRunner final : public refine::FitObserver {
   // The fit's nuisance terms (refine/fit_terms.hpp): the model's outputs plus x_zero, and
   // ambient_offset + ambient_drift·(t − t0) with t0 its window's first sample.
   double x_zero_ = 0.0, ambient_offset_ = 0.0, ambient_drift_ = 0.0, t0_ = 0.0;
+  // The fit's extensions and its temperature sensor's lag (refine/sensor_lag.hpp), applied to
+  // the simulated T̄ when lagged_.
+  scp::refine::Tempcos tempcos_{};
+  bool lagged_ = false;
+  scp::refine::SensorLag lag_{0.0};
   scp::health::Vector2 inverse_sigma_ = scp::health::Vector2::Zero();
   HealthView view_{};
 };
