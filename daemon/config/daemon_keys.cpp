@@ -87,6 +87,9 @@ void declare_sim(Binder& sim, drivers::sim::SimSettings& out) {
   noise.number("xdot", out.noise_xdot, 0.0, 0.0, 10.0, "on ẋ, in m/s");
   noise.number("temperature", out.noise_temperature, 0.0, 0.0, 100.0, "on T, in °C");
   noise.number("voltage", out.noise_voltage, 0.0, 0.0, 10.0, "on the voltage read back, in V");
+  noise.number("correlation_s", out.noise_correlation_s, 0.0, 0.0, 100.0,
+               "correlation time of every channel's noise, s: 0 = white, else a first-order "
+               "Gauss-Markov process with the standard deviations above (a filtered sensor)");
   noise.integer("seed", out.seed, 1, 0, std::uint64_t{1} << 62, "seed of the noise generator");
   sim.boolean("measure_xdot", out.measure_xdot, true,
               "false: the simulated device has no velocity sensor (ẋ is estimated from x)");

@@ -4,7 +4,9 @@
 // senses: the true ambient's offset and drift, through its lag), the voltage and, when
 // measured, the heater's current, each with its own Gaussian noise.
 
+#include <array>
 #include <cstdint>
+#include <limits>
 #include <random>
 
 #include "drivers/sample.hpp"
@@ -24,12 +26,17 @@ class Sensors {
   double read(const Plant& plant, double voltage, double applied, Sample& out) noexcept;
 
  private:
-  double noise(double stddev) noexcept;
+  // The next noise value of `channel` (x, ẋ, T, V) at the plant's time `t`.
+  double noise(int channel, double stddev, double t) noexcept;
   double current_noise() noexcept;
 
   double ambient_c_;
   double x_zero_;
   double noise_x_, noise_xdot_, noise_temperature_, noise_voltage_, noise_current_;
+  double correlation_s_;
+  // The coloured noise's state per channel and when it was last drawn (NaN: not yet).
+  std::array<double, 4> coloured_{};
+  double last_t_ = std::numeric_limits<double>::quiet_NaN();
   bool measure_xdot_;
   bool measure_current_;
   // x, ẋ, T and V draw from one generator in that order (as before the current channel

@@ -76,6 +76,8 @@ void validate(const SimSettings& s) {
   require_non_negative(s.noise_xdot, "sim.noise.xdot", noise_remedy);
   require_non_negative(s.noise_temperature, "sim.noise.temperature", noise_remedy);
   require_non_negative(s.noise_voltage, "sim.noise.voltage", noise_remedy);
+  require_non_negative(s.noise_correlation_s, "sim.noise.correlation_s",
+                       "use 0 for white noise, else the sensor's correlation time in s");
   const SimSettings::Drift& d = s.drift;
   const char* drift_remedy = "give a relative rate per hour, e.g. 0.01 for +1 %/h";
   for (const auto& [v, field] :

@@ -41,6 +41,9 @@ struct SimSettings {
   int substeps = 20;  // RK4 sub-steps per millisecond of simulated time, ≥ 1
   // Gaussian sensor noise, standard deviation in SI units (m, m/s, °C, V); 0 = none.
   double noise_x = 0, noise_xdot = 0, noise_temperature = 0, noise_voltage = 0;
+  // s: 0 = white noise; else each channel's noise is a first-order Gauss–Markov process with
+  // this correlation time and the standard deviations above (a filtered or drifting sensor).
+  double noise_correlation_s = 0;
   std::uint64_t seed = 1;    // of the noise generator; the same seed gives the same samples
   bool measure_xdot = true;  // false: Sample::xdot = NaN (a device without a velocity sensor)
   using Drift = PlantDrift;  // relative drift per hour of each physical parameter

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "drivers/sim/sim_driver.hpp"
 
@@ -73,6 +74,60 @@ TEST(SimSensors, TemperatureIsAbsoluteThroughTheLag) {
   const double trail =
       tss * rate * tau / (1.0 - rate * tau) * (std::exp(-rate * t) - std::exp(-t / tau));
   EXPECT_NEAR(sa.temperature - sb.temperature, trail, 1e-9 * trail);
+}
+
+// Coloured sensor noise (a filtered or drifting sensor, the white noise's counterpart): each
+// channel's noise keeps its standard deviation and has the lag-one correlation exp(−Δ/τc) of a
+// first-order Gauss–Markov process; with τc = 0 it is white and the samples are those of before.
+double lag_one_correlation(const std::vector<double>& v, double* stddev) {
+  double mean = 0.0;
+  for (const double e : v) mean += e / static_cast<double>(v.size());
+  double c0 = 0.0, c1 = 0.0;
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    c0 += (v[i] - mean) * (v[i] - mean);
+    if (i > 0) c1 += (v[i] - mean) * (v[i - 1] - mean);
+  }
+  *stddev = std::sqrt(c0 / static_cast<double>(v.size()));
+  return c1 / c0;
+}
+
+TEST(SimSensors, ColouredNoiseKeepsItsDeviationAndHasTheConfiguredCorrelation) {
+  SimSettings white;
+  white.noise_x = 1e-6;
+  white.noise_temperature = 0.1;
+  SimSettings coloured = white;
+  coloured.noise_correlation_s = 0.02;
+  SimSettings quiet = white;
+  quiet.noise_x = quiet.noise_temperature = 0.0;
+  SimDriver w(white), c(coloured), q(quiet);
+  w.open();
+  c.open();
+  q.open();
+  std::vector<double> wx, cx, ct;
+  for (int k = 0; k < 200000; ++k) {  // 200 s at rest: the noise alone, 10⁴ correlation times
+    Sample sw, sc, sq;
+    const CycleTime now{k * kPeriod, kPeriod};
+    ASSERT_EQ(w.read(now, sw).status, IoStatus::ok);
+    ASSERT_EQ(c.read(now, sc).status, IoStatus::ok);
+    ASSERT_EQ(q.read(now, sq).status, IoStatus::ok);
+    wx.push_back(sw.x - sq.x);
+    cx.push_back(sc.x - sq.x);
+    ct.push_back(sc.temperature - sq.temperature);
+  }
+  double sd_w = 0.0, sd_x = 0.0, sd_t = 0.0;
+  const double rho_w = lag_one_correlation(wx, &sd_w);
+  const double rho_x = lag_one_correlation(cx, &sd_x);
+  const double rho_t = lag_one_correlation(ct, &sd_t);
+  const double expected = std::exp(-kPeriod / 0.02);  // 0.951
+  EXPECT_NEAR(rho_w, 0.0, 0.01);
+  EXPECT_NEAR(rho_x, expected, 0.005);
+  EXPECT_NEAR(rho_t, expected, 0.005);
+  // σ of the mean of 10⁴ correlation times' worth of samples: a few %.
+  EXPECT_NEAR(sd_w, 1e-6, 0.01e-6);
+  EXPECT_NEAR(sd_x, 1e-6, 0.05e-6);
+  EXPECT_NEAR(sd_t, 0.1, 0.005);
+  coloured.noise_correlation_s = -1.0;
+  EXPECT_NE(error_of(coloured).find("sim.noise.correlation_s"), std::string::npos);
 }
 
 TEST(SimSensors, CurrentFollowsTheHotResistance) {
