@@ -36,46 +36,20 @@ Matrix6 precision_of(const Vector6& theta, const Matrix6& covariance) {
 
 using MatrixD = InnovationScores::MatrixD;
 using VectorD = InnovationScores::VectorD;
-// [u, v]: the reference's error at its anchor and θ's rate; the nuisance follows.
-constexpr int kErrorDim = 2 * kParams;
-constexpr int kRate = kParams;  // v's first index
 
-// The block's sums over [u, v] and its segment's nuisance (both outputs). The block is short
-// against a drift: its samples are all taken at its midpoint, τ from the anchor, where the
-// error is u + v·τ.
-void block_sums(const ScoreBlock& block, double anchor, MatrixD& information, VectorD& score) {
-  const double tau = 0.5 * (block.t_begin + block.t_end) - anchor;
-  Matrix6N cross = Matrix6N::Zero();
-  NuisanceMatrix nuisance_information = NuisanceMatrix::Zero();
-  NuisanceVector nuisance_score = NuisanceVector::Zero();
-  for (const OutputSums& o : block.outputs) {
-    nuisance_information += o.nuisance_information;
-    cross += o.cross_information;
-    nuisance_score += o.nuisance_score;
-  }
+// The block's sums over θ and its segment's nuisance (both outputs).
+void block_sums(const ScoreBlock& block, MatrixD& information, VectorD& score) {
   information.setZero();
   score.setZero();
-  information.block<kParams, kParams>(0, 0) = block.information;
-  information.block<kParams, kParams>(0, kRate) = tau * block.information;
-  information.block<kParams, kParams>(kRate, 0) = tau * block.information;
-  information.block<kParams, kParams>(kRate, kRate) = tau * tau * block.information;
-  information.block<kParams, kNuisance>(0, kErrorDim) = cross;
-  information.block<kParams, kNuisance>(kRate, kErrorDim) = tau * cross;
-  information.bottomRightCorner<kNuisance, kNuisance>() = nuisance_information;
-  information.bottomLeftCorner<kNuisance, kErrorDim>() =
-      information.topRightCorner<kErrorDim, kNuisance>().transpose();
+  information.topLeftCorner<kParams, kParams>() = block.information;
   score.head<kParams>() = block.score;
-  score.segment<kParams>(kRate) = tau * block.score;
-  score.tail<kNuisance>() = nuisance_score;
-}
-
-// The same data with the error at anchor T' instead of T: u_T = u_T' + (T − T')·v, so
-// A' = MᵀAM, b' = Mᵀb with M the identity but for (T − T')·I from v into u.
-void reanchor(MatrixD& information, VectorD& score, double from_anchor, double to_anchor) {
-  const double d = from_anchor - to_anchor;
-  information.middleCols<kParams>(kRate) += d * information.leftCols<kParams>();
-  information.middleRows<kParams>(kRate) += d * information.topRows<kParams>();
-  score.segment<kParams>(kRate) += d * score.head<kParams>();
+  for (const OutputSums& o : block.outputs) {
+    information.bottomRightCorner<kNuisance, kNuisance>() += o.nuisance_information;
+    information.topRightCorner<kParams, kNuisance>() += o.cross_information;
+    score.tail<kNuisance>() += o.nuisance_score;
+  }
+  information.bottomLeftCorner<kNuisance, kParams>() =
+      information.topRightCorner<kParams, kNuisance>().transpose();
 }
 
 // D·M·D with D = diag(1/√M_ii) (0 where M_ii = 0): unit diagonal, whatever θ's scales.
@@ -100,49 +74,22 @@ Eigen::Matrix<double, N, N> pseudo_inverse(const Eigen::Matrix<double, N, N>& m)
 
 }  // namespace
 
-void InnovationScores::set_reference(const ReferencePrior& prior, double data_end, double from) {
-  pending_ = {true, prior, data_end, from};
-}
-
 void InnovationScores::set_reference(const Vector6& theta, const Matrix6& covariance,
                                      double data_end, double from) {
-  ReferencePrior prior;
-  prior.theta = theta;
-  prior.covariance = covariance;
-  prior.anchor = from;
-  set_reference(prior, data_end, from);
+  pending_ = {true, theta, covariance, data_end, from};
 }
 
 void InnovationScores::apply(const PendingReference& r) {
-  const ReferencePrior& p = r.prior;
-  const Vector6 shift = p.theta - theta_;
+  const Vector6 shift = r.theta - theta_;
   std::erase_if(closed_, [&](const Segment& k) { return k.t_begin < r.data_end; });
   if (has_open_ && open_.t_begin < r.data_end) has_open_ = false;
   if (valid_) {
-    // E[s] = I·(θ − θ_ref): the same data about the error at the new anchor, against the new θ_ref.
-    for (Segment& k : closed_) {
-      reanchor(k.information, k.score, anchor_, p.anchor);
-      k.score -= k.information.leftCols<kParams>() * shift;
-    }
-    if (has_open_) {
-      reanchor(open_.information, open_.score, anchor_, p.anchor);
-      open_.score -= open_.information.leftCols<kParams>() * shift;
-    }
+    // E[s] = I·(θ − θ_ref): the same data against the new θ_ref.
+    for (Segment& k : closed_) k.score -= k.information.leftCols<kParams>() * shift;
+    if (has_open_) open_.score -= open_.information.leftCols<kParams>() * shift;
   }
-  theta_ = p.theta;
-  anchor_ = p.anchor;
-  prior_precision_.setZero();
-  prior_score_.setZero();
-  prior_precision_.topLeftCorner<kParams, kParams>() = precision_of(p.theta, p.covariance);
-  for (int i = 0; i < kParams; ++i) {
-    // θ units per second; a known rate gets the same tiny σ as a known θ.
-    const double floor = kKnownRelativeSigma * scale_of(p.theta[i]);
-    const double sigma = std::isfinite(p.rate_sigma[i]) ? std::abs(p.rate_sigma[i]) : 0.0;
-    const double precision = 1.0 / (sigma * sigma + floor * floor);
-    const double rate = std::isfinite(p.rate[i]) ? p.rate[i] : 0.0;
-    prior_precision_(kRate + i, kRate + i) = precision;
-    prior_score_[kRate + i] = precision * rate;
-  }
+  theta_ = r.theta;
+  prior_precision_ = precision_of(r.theta, r.covariance);
   valid_ = true;
 }
 
@@ -157,21 +104,22 @@ void InnovationScores::close_open_segment() {
       pseudo_inverse<kNuisance>(d.asDiagonal() * Eigen::Matrix<double, kNuisance, kNuisance>(nn) *
                                 d.asDiagonal()) *
       d.asDiagonal();
-  const Eigen::Matrix<double, kErrorDim, kNuisance> en =
-      open_.information.topRightCorner<kErrorDim, kNuisance>();
+  const Eigen::Matrix<double, kParams, kNuisance> en =
+      open_.information.topRightCorner<kParams, kNuisance>();
   Segment closed;
   closed.id = open_.id;
   closed.t_begin = open_.t_begin;
-  closed.information.topLeftCorner<kErrorDim, kErrorDim>() =
-      open_.information.topLeftCorner<kErrorDim, kErrorDim>() - en * nn_pinv * en.transpose();
-  closed.score.head<kErrorDim>() =
-      open_.score.head<kErrorDim>() - en * nn_pinv * open_.score.tail<kNuisance>();
+  closed.information.topLeftCorner<kParams, kParams>() =
+      open_.information.topLeftCorner<kParams, kParams>() - en * nn_pinv * en.transpose();
+  closed.score.head<kParams>() =
+      open_.score.head<kParams>() - en * nn_pinv * open_.score.tail<kNuisance>();
   closed_.push_back(closed);
 }
 
 void InnovationScores::totals(MatrixD& information, VectorD& score) const {
-  information = prior_precision_;
-  score = prior_score_;
+  information.setZero();
+  score.setZero();
+  information.topLeftCorner<kParams, kParams>() = prior_precision_;
   for (const Segment& k : closed_) {
     information += k.information;
     score += k.score;
@@ -198,7 +146,7 @@ std::optional<Vector6> InnovationScores::add(const ScoreBlock& block) {
   MatrixD a, i;
   VectorD b, s;
   totals(a, b);
-  block_sums(block, anchor_, i, s);
+  block_sums(block, i, s);
   // In units where A + I has a unit diagonal: the posterior with the block, the block's score
   // at it, and that score's covariance given the past.
   const VectorD d = unit_scale<kDim>(MatrixD(a + i));
@@ -216,21 +164,15 @@ std::optional<Vector6> InnovationScores::add(const ScoreBlock& block) {
   return z;
 }
 
-InnovationScores::VectorD InnovationScores::posterior_mean() const {
+Vector6 InnovationScores::error_estimate() const {
   MatrixD a;
   VectorD b;
   totals(a, b);
   const VectorD d = unit_scale<kDim>(a);
-  return d.asDiagonal() * (pseudo_inverse<kDim>(MatrixD(d.asDiagonal() * a * d.asDiagonal())) *
-                           (d.asDiagonal() * b));
-}
-
-Vector6 InnovationScores::error_estimate() const {
-  return posterior_mean().head<kParams>();
-}
-
-Vector6 InnovationScores::rate_estimate() const {
-  return posterior_mean().segment<kParams>(kRate);
+  const VectorD e =
+      d.asDiagonal() *
+      (pseudo_inverse<kDim>(MatrixD(d.asDiagonal() * a * d.asDiagonal())) * (d.asDiagonal() * b));
+  return e.head<kParams>();
 }
 
 void InnovationScores::clear() noexcept {

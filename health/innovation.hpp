@@ -23,24 +23,11 @@
 // gives z_i mean ≈ ∆·√G_ii at first, which the posterior absorbs only at the rate it accrues
 // data (the blocks since the reference's data end, a window length and more, against the few
 // blocks a CUSUM needs). With an exact reference and no nuisance, z_i is the plain s_i/√I_ii.
-//
-// A drift: the error is not constant. The residual simulation runs one θ_ref per reference
-// (the caller re-seeds it at each new one), while a drifting θ moves continuously, so the
-// reference's error grows linearly in time, e(t) = u + v·(t − T): u the error at the reference's
-// anchor T (where its covariance holds: the trend's evaluation time, or a level's windows'
-// midpoint), v the rate θ moves at. A prior that took e constant (v = 0) and tight (the windows
-// see what x sees far better than a drift of 20 %/h moves it in a minute) makes every block after
-// a new reference a step of hundreds of σ: the alarm storm of a drifting plant. So v is estimated
-// with u, from the same blocks (a block at t adds its score and information times (t − T) to
-// v's; a block is short against the drift), with a prior N(rate, diag(rate_sigma²)): the trend's
-// slope and its σ, widened by an allowance for a drift the windows have not yet resolved. A
-// step stays a step: it jumps within a block, which no rate inside the prior explains, and a
-// rate learnt from the blocks before it predicts no jump.
+// A drift is absorbed as it goes.
 //
 // At a new segment its predecessor's nuisance is profiled out (its blocks keep their information
-// about e); at a new reference θ' the segments kept are re-anchored at its anchor T' (u + v·(T' −
-// T) is the error there) and re-expressed against it (b −= A·(θ' − θ), exact for the linearized
-// response), and those that began before its data end leave.
+// about e); at a new reference θ' the segments kept are re-expressed against it (b −= A·(θ' − θ),
+// exact for the linearized response), and those that began before its data end leave.
 
 #include <cstdint>
 #include <optional>
@@ -50,20 +37,9 @@
 
 namespace scp::health {
 
-// What the reference says about θ: its level θ_ref (the residual simulation's θ) with the
-// covariance of θ at `anchor`, and θ's rate of change (per second) with σ per parameter.
-struct ReferencePrior {
-  Vector6 theta = Vector6::Zero();
-  Matrix6 covariance = Matrix6::Zero();
-  double anchor = 0.0;  // s, loop time
-  Vector6 rate = Vector6::Zero();
-  Vector6 rate_sigma = Vector6::Zero();  // 0: the rate is known
-};
-
 class InnovationScores {
  public:
-  // η = [u, v, n]: the reference's error at its anchor, θ's rate, the segment's nuisance.
-  static constexpr int kDim = 2 * kParams + kNuisance;
+  static constexpr int kDim = kParams + kNuisance;
   using VectorD = Eigen::Matrix<double, kDim, 1>;
   using MatrixD = Eigen::Matrix<double, kDim, kDim>;
 
@@ -71,8 +47,6 @@ class InnovationScores {
   // independent of it (its windows' data end before), and the time from which the blocks are
   // computed against it (a block that began before is against the previous one). A parameter
   // with zero variance is known.
-  void set_reference(const ReferencePrior& prior, double data_end, double from);
-  // A reference whose error is constant (its rate known to be 0), anchored at `from`.
   void set_reference(const Vector6& theta, const Matrix6& covariance, double data_end, double from);
   // The block's z against the reference corrected by the blocks before it (0 where the block
   // does not see a parameter); then the block joins the posterior. Blocks come in time order.
@@ -81,15 +55,14 @@ class InnovationScores {
   std::optional<Vector6> add(const ScoreBlock& block);
   void clear() noexcept;
 
-  // The posterior's estimate of θ − θ_ref at the reference's anchor, and of θ's rate (per
-  // second), for tests and diagnostics.
+  // The posterior's estimate of θ − θ_ref (for tests and diagnostics).
   Vector6 error_estimate() const;
-  Vector6 rate_estimate() const;
 
  private:
   struct PendingReference {
     bool active = false;
-    ReferencePrior prior;
+    Vector6 theta = Vector6::Zero();
+    Matrix6 covariance = Matrix6::Zero();
     double data_end = 0.0;
     double from = 0.0;
   };
@@ -103,14 +76,11 @@ class InnovationScores {
   void apply(const PendingReference& r);
   void close_open_segment();
   void totals(MatrixD& information, VectorD& score) const;
-  VectorD posterior_mean() const;
 
   PendingReference pending_;
   bool valid_ = false;
   Vector6 theta_ = Vector6::Zero();
-  double anchor_ = 0.0;
-  MatrixD prior_precision_ = MatrixD::Zero();  // over [u, v]
-  VectorD prior_score_ = VectorD::Zero();      // precision × mean
+  Matrix6 prior_precision_ = Matrix6::Zero();
   std::vector<Segment> closed_;
   Segment open_;
   bool has_open_ = false;

@@ -120,7 +120,6 @@ HealthMonitor::Prediction HealthMonitor::predict(double t, double data_before) c
     p.fit.valid = true;
     p.fit.windows = 1;
     p.fit.t_eval = t;
-    p.fit.data_center = t;
     p.fit.level = baseline_.theta;
     p.fit.level_covariance = baseline_.covariance;
     p.from_baseline = true;

@@ -187,7 +187,6 @@ class HealthMonitor {
   void test_against_reference(const WindowEstimate& w);
   void update_drift(const WindowEstimate& w);
   void update_reference(double t);
-  ReferencePrior innovation_prior(const TrendFit& fit) const;
   void design_cusums();
   void fast_alarm(const ScoreBlock& block);
   ChangePoint fast_change(const ChangeEvidence& since, const ScoreBlock& plain, double onset,

@@ -23,13 +23,6 @@ constexpr double kRampMargin = 10.83;
 constexpr double kRampMinEvidenceSeconds = 20.0;
 // How many blocks a fast alarm may wait for a block after its onset to name it from.
 constexpr int kAlarmWaitBlocks = 2;
-// The innovations' prior σ for θ's rate of change, as a fraction of |θ_i| per hour: a level
-// from one window says nothing of the rate, and a slope from two or three overlapping windows
-// little. Ten times
-// the default drift_per_hour, so a drift several times faster than what raises `drift` is
-// still within it; a step of design_change is far outside it (it jumps within a block).
-constexpr double kDriftAllowancePerHour = 0.5;
-constexpr double kSecondsPerHour = 3600.0;
 
 }  // namespace
 
@@ -68,25 +61,7 @@ void HealthMonitor::update_reference(double t) {
   }
   reference_.theta = p.fit.level;
   reference_.covariance = p.fit.level_covariance;
-  innovation_.set_reference(innovation_prior(p.fit), data_end, t);
-}
-
-// The residual simulation runs θ_ref = the trend's level at t_eval for the whole generation,
-// while a drifting θ moves on: the innovations estimate that rate (innovation.hpp) from a prior
-// N(0, allowance²). Not the trend's slope: from two or three overlapping windows it moved the
-// common scale of θ1..θ4 by thousands of % per hour in the daemon's drifting runs. A level
-// alone holds at its windows' centre, not at t_eval: that is where its error is the level's
-// covariance.
-ReferencePrior HealthMonitor::innovation_prior(const TrendFit& fit) const {
-  ReferencePrior prior;
-  prior.theta = fit.level;
-  prior.covariance = fit.level_covariance;
-  prior.anchor = fit.with_slope ? fit.t_eval : fit.data_center;
-  for (int i = 0; i < kParams; ++i) {
-    if (!(fit.level_covariance(i, i) > 0.0)) continue;  // held known: so is its rate
-    prior.rate_sigma[i] = kDriftAllowancePerHour * std::abs(fit.level[i]) / kSecondsPerHour;
-  }
-  return prior;
+  innovation_.set_reference(reference_.theta, reference_.covariance, data_end, t);
 }
 
 // Per parameter i: the design shift in z units, δ_i = design_change·|θ_i|·√Ī_ii (Ī the mean

@@ -87,7 +87,6 @@ TrendFit fit_trend(std::span<const WindowEstimate> windows, double t_eval, bool 
   fit.windows = static_cast<int>(n);
   fit.t_eval = t_eval;
   fit.data_span = windows.back().t_end - windows.front().t_begin;
-  for (const auto& window : windows) fit.data_center += window.midpoint() / static_cast<double>(n);
   Vector6 slope_variance = Vector6::Zero();
   for (Eigen::Index t = 0; t < n; ++t) {
     for (int i = 0; i < kParams; ++i) {

@@ -31,8 +31,6 @@ struct TrendFit {
   Vector6 slope = Vector6::Zero();  // per second
   Vector6 slope_sigma = Vector6::Zero();
   double data_span = 0.0;  // s, the first window's start to the last one's end
-  // s, the mean of the windows' midpoints: where a level alone holds under a drift.
-  double data_center = 0.0;
 };
 
 // The windows in time order. with_slope = false fits the level alone; a slope needs two windows

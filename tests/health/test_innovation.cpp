@@ -88,40 +88,5 @@ TEST(Innovation, AStepShowsInTheBlocksAfterIt) {
   EXPECT_LT(after, 1.1 * shift);
 }
 
-// b/m drifting at +20 %/h against a level reference from one window (anchored at its midpoint,
-// 60 s before the blocks start), with a tight covariance: a constant error (rate known to be 0)
-// sees the drift as a growing bias; with the rate estimated the innovations stay N(0, 1). The
-// blocks see θ 10⁴ times more sharply than the Plant's, as the daemon's see b/m
-// (docs/health.md).
-double drift_mean_square(bool estimate_rate) {
-  Plant s;
-  s.information *= 1e4;
-  s.reference_covariance = s.window / 1e4;
-  test::ScoreStream stream(s.information, 31);
-  const double rate = 0.2 * s.theta[0] / 3600.0;
-  InnovationScores innovation;
-  ReferencePrior prior;
-  prior.theta = s.theta;
-  prior.covariance = s.reference_covariance;
-  prior.anchor = -60.0;
-  if (estimate_rate)
-    for (int i = 0; i < kParams; ++i) prior.rate_sigma[i] = 0.5 * std::abs(s.theta[i]) / 3600.0;
-  innovation.set_reference(prior, 0.0, 0.0);
-  double square = 0.0;
-  const int blocks = 150;
-  for (int b = 0; b < blocks; ++b) {
-    Vector6 truth = s.theta;
-    truth[0] += rate * (b + 0.5 - prior.anchor);
-    const Vector6 z = innovation.add(stream.block(b, b + 1.0, truth, s.theta)).value();
-    square += z[0] * z[0] / blocks;
-  }
-  return square;
-}
-
-TEST(Innovation, ADriftIsAbsorbedByItsRate) {
-  EXPECT_LT(drift_mean_square(true), 1.5);
-  EXPECT_GT(drift_mean_square(false), 10.0);
-}
-
 }  // namespace
 }  // namespace scp::health
