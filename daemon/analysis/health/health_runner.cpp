@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "health/block_variance.hpp"
 #include "refine/model_simulator.hpp"
 
 namespace scp::daemon::health {
@@ -96,8 +97,7 @@ void HealthRunner::feed(const scp::refine::WindowSample& sample) {
   // T̄ as the fit's sensor reads it (refine/sensor_lag.hpp), and its sensitivities.
   const scp::refine::ParamVector& dtbar_read = lagged_ ? lag_.sensitivities() : simulator_->dtbar();
   const double x_model = s.x + x_zero_;
-  const double tbar_model =
-      (lagged_ ? lag_.reading() : s.tbar) + ambient_offset_ + ambient_drift_ * (sample.t - t0_);
+  const double tbar_model = tbar_read(lagged_ ? lag_.reading() : s.tbar, sample.t);
   const Vector2 residual((sample.x - x_model) * inverse_sigma_[0],
                          (sample.tbar - tbar_model) * inverse_sigma_[1]);
   Matrix26 sensitivity;
@@ -176,11 +176,22 @@ void HealthRunner::seed(const scp::refine::FitResult& fit,
   lagged_ = std::isfinite(tau) && tau != 0.0;  // as the fit: τs < 0 is its first-order continuation
   lag_ = scp::refine::SensorLag(lagged_ ? tau : 0.0);
   lag_.start(state.tbar, nullptr);
+  x_zero_ = fit.nuisance.x_zero.value;
+  ambient_offset_ = fit.nuisance.ambient_offset.value;
+  ambient_drift_ = fit.nuisance.ambient_drift.value;
+  t0_ = window.front().t;
+  // The fit's own residuals on the way: how far they are from white at the detector's block
+  // length (coloured sensor noise, a misfit the model leaves), which the scores must allow for.
+  scp::health::BlockVarianceRatio ratio_x(settings_.block_s), ratio_t(settings_.block_s);
   for (std::size_t i = 1; i < window.size(); ++i) {
     scp::refine::advance_interval(fit.theta, window[i - 1], window[i], fit.input_delay_s, state,
                                   cache, nullptr, tempcos_);
     if (lagged_) lag_.advance(window[i].t - window[i - 1].t, state.tbar, nullptr);
+    const double t = window[i].t;
+    ratio_x.add(t, (window[i].x - (state.x + x_zero_)) / sx);
+    ratio_t.add(t, (window[i].tbar - tbar_read(lagged_ ? lag_.reading() : state.tbar, t)) / st);
   }
+  view_.residual_variance_ratio = {ratio_x.significant_ratio(), ratio_t.significant_ratio()};
   const scp::health::Reference reference = monitor_->reference_at(window.back().t);
   if (!reference.valid) return;
   // The reference's θ with the fit's extensions (a baseline holds θ only).
@@ -191,12 +202,13 @@ void HealthRunner::seed(const scp::refine::FitResult& fit,
   ++segment_;
   last_sample_ = window.back();
   input_delay_ = fit.input_delay_s;
-  x_zero_ = fit.nuisance.x_zero.value;
-  ambient_offset_ = fit.nuisance.ambient_offset.value;
-  ambient_drift_ = fit.nuisance.ambient_drift.value;
-  t0_ = window.front().t;
-  inverse_sigma_ = Vector2(1.0 / sx, 1.0 / st);
+  inverse_sigma_ = Vector2(1.0 / (sx * std::sqrt(view_.residual_variance_ratio[0])),
+                           1.0 / (st * std::sqrt(view_.residual_variance_ratio[1])));
   ++view_.reseeds;
+}
+
+double HealthRunner::tbar_read(double sensed, double t) const noexcept {
+  return sensed + ambient_offset_ + ambient_drift_ * (t - t0_);
 }
 
 std::vector<scp::health::HealthEvent> HealthRunner::take_events() {

@@ -6,7 +6,9 @@
 // The fast detector's residuals come from the refinement's own simulator: at each converged fit
 // the fitted model is run through its window from the fitted initial state, and from the state
 // it reaches at the window's end a SensitivitySimulator runs the monitor's reference θ forward
-// on every later sample; r = ε/σ and J = ∂(y/σ)/∂θ with σ the fit's noise estimates. The next fit
+// on every later sample; r = ε/σ and J = ∂(y/σ)/∂θ with σ the fit's noise estimates, each
+// widened by √ratio where the fit's own residuals vary over a block more than white noise does
+// (health/block_variance.hpp). The next fit
 // re-seeds it, so the open-loop simulation never runs longer than refine.interval_s plus a fit.
 
 #include <optional>
@@ -55,6 +57,9 @@ class HealthRunner final : public refine::FitObserver {
   void remember_fit(const scp::refine::FitResult& fit);
   void seed(const scp::refine::FitResult& fit, std::span<const scp::refine::WindowSample> window);
   void publish() noexcept;
+  // The model's T̄ as the fit's sensor reads it at t: `sensed` (through the lag) plus the
+  // fitted ambient offset and drift.
+  double tbar_read(double sensed, double t) const noexcept;
 
   scp::health::HealthSettings settings_;
   bool adopt_first_fit_ = false;

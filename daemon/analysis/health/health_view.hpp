@@ -34,6 +34,9 @@ struct HealthView {
   std::int64_t last_window_unix_ns = 0;  // wall clock of the last window given; 0 none
   std::uint64_t residual_samples = 0;    // fed to the fast detector
   std::uint64_t reseeds = 0;             // times its simulator was seeded at a fitted state
+  // x's and T̄'s long-run variance ratio at the block length, from the last seed's window
+  // (health/block_variance.hpp; 1 where not significant): the scores' σ is widened by its root.
+  std::array<double, 2> residual_variance_ratio{1.0, 1.0};
 };
 
 static_assert(std::is_trivially_copyable_v<HealthView>, "published through a Seqlock");

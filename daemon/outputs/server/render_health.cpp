@@ -107,6 +107,8 @@ void put_full(json& out, const health::HealthView& v) {
   out["dismissed"] = r.dismissed;
   out["acknowledged"] = r.acknowledged;
   out["residual_samples"] = v.residual_samples;
+  out["residual_variance_ratio"] = {{"x", v.residual_variance_ratio[0]},
+                                    {"T", v.residual_variance_ratio[1]}};
   out["baseline_estimate"] = {{"file", std::string(v.baseline_file.data())},
                               {"theta", v.baseline_theta},
                               {"sigma", v.baseline_sigma}};
