@@ -20,7 +20,17 @@ long BlockMeans::index_of(double t) const noexcept {
   return std::isfinite(b) ? std::max(open_index_, static_cast<long>(b)) : open_index_;
 }
 
-double* BlockMeans::accumulate(double t) noexcept {
+void BlockMeans::set_open_until() noexcept {
+  // index_of(t) ≤ open_index_ for every t − t0 below the block's end (open_index_ + 1)·block_s
+  // less the rounding of t − t0, of the division and of this sum, each within ε of |t0| + the
+  // end: 64ε of it leaves room to spare (a clock counting from the epoch included).
+  const double end = static_cast<double>(open_index_ + 1) * block_s_;
+  const double margin = 64.0 * std::numeric_limits<double>::epsilon() * (std::abs(t0_) + end);
+  open_until_ =
+      std::isfinite(end) ? t0_ + (end - margin) : -std::numeric_limits<double>::infinity();
+}
+
+double* BlockMeans::enter(double t) noexcept {
   if (!started_) {
     started_ = true;
     t0_ = t;
@@ -38,6 +48,7 @@ double* BlockMeans::accumulate(double t) noexcept {
     }
     open_index_ = index;
   }
+  set_open_until();
   open_count_ += 1.0;
   return open_sums_.data();
 }

@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <cstddef>
+#include <limits>
 #include <vector>
 
 namespace scp::refine {
@@ -19,8 +20,15 @@ class BlockMeans {
 
   // The sums of the block that holds t (closing the block before when t enters a new one), to
   // add one sample's `fields` values into; counts the sample. t must not decrease. Never
-  // allocates.
-  double* accumulate(double t) noexcept;
+  // allocates. Inline for the samples inside the open block, all but one per block: the fit's
+  // final pass calls it twice per sample.
+  double* accumulate(double t) noexcept {
+    if (t < open_until_) {
+      open_count_ += 1.0;
+      return open_sums_.data();
+    }
+    return enter(t);
+  }
 
   double block_s() const noexcept { return block_s_; }
   int fields() const noexcept { return fields_; }
@@ -29,6 +37,8 @@ class BlockMeans {
   Eigen::VectorXd counts() const;
 
  private:
+  double* enter(double t) noexcept;
+  void set_open_until() noexcept;
   void close_open() noexcept;
   void merge_pairs() noexcept;
   long index_of(double t) const noexcept;
@@ -39,6 +49,9 @@ class BlockMeans {
   double t0_ = 0.0;
   bool started_ = false;
   long open_index_ = 0;
+  // Every t below this belongs to the open block whatever index_of()'s rounding (−∞ before the
+  // first sample), so that the samples inside a block skip its division and floor.
+  double open_until_ = -std::numeric_limits<double>::infinity();
   double open_count_ = 0.0;
   std::vector<double> open_sums_;
   std::vector<double> sums_;  // closed blocks, row-major (max_blocks × fields)

@@ -20,7 +20,9 @@
 // one step.
 
 #include <Eigen/Core>
+#include <array>
 #include <cmath>
+#include <cstddef>
 #include <span>
 
 #include "refine/fit.hpp"
@@ -122,21 +124,30 @@ class SubstepRule {
   double damping_, slope_, stiffness_, kappa_, root_;
 };
 
-// The last ThermalPiece computed: a uniformly sampled window has one τ, so one exp per pass.
+// The last two ThermalPieces computed, matched exactly (the same bits as computing them). A
+// uniformly sampled window has one τ up to its last bits: t_k − t_{k−1} of a clock counting in
+// steps of the sample interval takes two values at a time, alternating with the clock's rounding,
+// where a single entry recomputed the piece (exp and the φ series) at every other sample.
 class ThermalCache {
  public:
   const ThermalPiece& get(double theta5, double tau) noexcept {
-    if (theta5 != theta5_ || tau != tau_) {
-      piece_ = thermal_piece(theta5, tau);
-      theta5_ = theta5;
-      tau_ = tau;
-    }
-    return piece_;
+    for (Entry& e : entries_)
+      if (theta5 == e.theta5 && tau == e.tau) return e.piece;
+    Entry& e = entries_[oldest_];
+    oldest_ ^= 1;
+    e.piece = thermal_piece(theta5, tau);
+    e.theta5 = theta5;
+    e.tau = tau;
+    return e.piece;
   }
 
  private:
-  double theta5_ = -1.0, tau_ = -1.0;  // τ > 0 always: never a false hit
-  ThermalPiece piece_;
+  struct Entry {
+    double theta5 = -1.0, tau = -1.0;  // τ > 0 always: never a false hit
+    ThermalPiece piece;
+  };
+  std::array<Entry, 2> entries_{};
+  std::size_t oldest_ = 0;
 };
 
 // The thermal block with the extensions ρ and γ (Tempcos), dT̄/dt = F(T̄, u) with

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "refine/parameters.hpp"
 #include "refine/validation_layout.hpp"
 
 namespace scp::refine {
@@ -131,22 +132,49 @@ void ResidualValidator::advance_candidates(const ValidationSample& s, double dt)
 
 namespace {
 
-bool finite_sample(const ValidationSample& s, std::size_t columns) {
+// Sensitivities of N columns (Eigen::Dynamic: as many as ValidationSettings says). The fit's
+// passes feed one per slot of p (validation_settings()), a length fixed at compile time: the
+// per-sample sums then run unrolled in vector registers.
+template <int N>
+using Columns = Eigen::Matrix<double, N, 1>;
+constexpr int kFitColumns = kParams;
+
+template <int N>
+Eigen::Map<const Columns<N>> columns_of(std::span<const double> j, Eigen::Index n) {
+  return {j.data(), n};
+}
+
+// Whether every value is finite, without a branch per value: 0·v is 0 for a finite v and NaN
+// for ±∞ or NaN, and a NaN survives the sum.
+template <int N>
+bool finite_sample(const ValidationSample& s, Eigen::Index x_columns, Eigen::Index tbar_columns) {
   const double values[] = {
       s.t, s.x, s.x_model, s.tbar, s.tbar_model, s.thermal_input, s.mechanical_input};
-  for (double v : values)
-    if (!std::isfinite(v)) return false;
-  for (std::span<const double> j : {s.jacobian_x, s.jacobian_tbar})
-    for (std::size_t i = 0; i < std::min(columns, j.size()); ++i)
-      if (!std::isfinite(j[i])) return false;
-  return true;
+  double zero = 0.0;
+  for (double v : values) zero += 0.0 * v;
+  zero += (0.0 * columns_of<N>(s.jacobian_x, x_columns)).sum() +
+          (0.0 * columns_of<N>(s.jacobian_tbar, tbar_columns)).sum();
+  return zero == 0.0;
+}
+
+// Adds a sample's sensitivities to an open block's sums.
+template <int N>
+void add_columns(double* sums, std::span<const double> j, Eigen::Index columns) {
+  Eigen::Map<Columns<N>>(sums, columns) += columns_of<N>(j, columns);
 }
 
 }  // namespace
 
 void ResidualValidator::add(const ValidationSample& s) noexcept {
-  if (!finite_sample(s, static_cast<std::size_t>(settings_.jacobian_columns)) ||
-      (samples_ > 0 && !(s.t > t_prev_))) {
+  const auto used = [this](std::span<const double> j) {
+    return static_cast<Eigen::Index>(
+        std::min(static_cast<std::size_t>(settings_.jacobian_columns), j.size()));
+  };
+  const Eigen::Index nx = used(s.jacobian_x), nt = used(s.jacobian_tbar);
+  const bool fit_columns = nx == kFitColumns && nt == kFitColumns;
+  const bool finite = fit_columns ? finite_sample<kFitColumns>(s, nx, nt)
+                                  : finite_sample<Eigen::Dynamic>(s, nx, nt);
+  if (!finite || (samples_ > 0 && !(s.t > t_prev_))) {
     ++skipped_;
     return;
   }
@@ -163,9 +191,6 @@ void ResidualValidator::add(const ValidationSample& s) noexcept {
     y_squares_[c] += d * d;
   }
   const double tbar_rate = dt > 0.0 ? (s.tbar_model - tbar_model_prev_) / dt : 0.0;
-  const int p = settings_.jacobian_columns;
-  const auto jx = s.jacobian_x.first(std::min<std::size_t>(p, s.jacobian_x.size()));
-  const auto jt = s.jacobian_tbar.first(std::min<std::size_t>(p, s.jacobian_tbar.size()));
 
   double* m = mechanical_.accumulate(s.t);
   m[layout::kTime] += s.t - t_first_;
@@ -173,7 +198,11 @@ void ResidualValidator::add(const ValidationSample& s) noexcept {
   m[layout::kInput] += s.mechanical_input;
   m[layout::kStiffness] += s_stiffness_[0];
   m[layout::kThermalResidual] += s_thermal_residual_[0];
-  for (std::size_t j = 0; j < jx.size(); ++j) m[layout::kMechanicalJacobian + j] += jx[j];
+  if (fit_columns) {
+    add_columns<kFitColumns>(m + layout::kMechanicalJacobian, s.jacobian_x, nx);
+  } else {
+    add_columns<Eigen::Dynamic>(m + layout::kMechanicalJacobian, s.jacobian_x, nx);
+  }
 
   double* th = thermal_.accumulate(s.t);
   th[layout::kTime] += s.t - t_first_;
@@ -182,7 +211,11 @@ void ResidualValidator::add(const ValidationSample& s) noexcept {
   th[layout::kLag] += -tbar_rate;
   th[layout::kResistance] += s_resistance_;
   th[layout::kCooling] += s_cooling_;
-  for (std::size_t j = 0; j < jt.size(); ++j) th[layout::kThermalJacobian + j] += jt[j];
+  if (fit_columns) {
+    add_columns<kFitColumns>(th + layout::kThermalJacobian, s.jacobian_tbar, nt);
+  } else {
+    add_columns<Eigen::Dynamic>(th + layout::kThermalJacobian, s.jacobian_tbar, nt);
+  }
 
   ++samples_;
   t_prev_ = s.t;

@@ -175,35 +175,44 @@ ValidationReport ResidualValidator::finish() const {
                    settings_);
   const Block therm(thermal_, settings_.thermal_time_constant_s, layout::kThermalJacobian,
                     settings_);
-  auto set = [&](ValidationTest id, const TestOutcome& o) {
-    if (!settings_.disabled[static_cast<int>(id)]) report.tests[static_cast<int>(id)] = o;
+  // A disabled test is not run at all: the daemon's default fit estimates the displacement zero
+  // and the ambient's offset and drift, whose regressions would be thrown away.
+  auto run = [&](ValidationTest id, auto&& test) {
+    if (!settings_.disabled[static_cast<int>(id)]) report.tests[static_cast<int>(id)] = test();
   };
   const int mech_white = mech.lags(settings_.whiteness_span);
   const int mech_ind = mech.lags(settings_.independence_span);
-  set(ValidationTest::kWhitenessX, whiteness_test(mech, mech_white));
-  set(ValidationTest::kNoiseRatioX,
-      noise_ratio_test(rss_[0], samples_, mech.jacobian.cols(), settings_.declared_noise[0]));
-  set(ValidationTest::kIndependenceX, independence_test(mech, mech_ind));
-  set(ValidationTest::kDisplacementZero, candidate_test(mech, VectorXd::Ones(mech.rows())));
-  set(ValidationTest::kStiffnessTempco, candidate_test(mech, mech.column(layout::kStiffness)));
-  set(ValidationTest::kThermalResidual,
-      candidate_test(mech, mech.column(layout::kThermalResidual)));
+  run(ValidationTest::kWhitenessX, [&] { return whiteness_test(mech, mech_white); });
+  run(ValidationTest::kNoiseRatioX, [&] {
+    return noise_ratio_test(rss_[0], samples_, mech.jacobian.cols(), settings_.declared_noise[0]);
+  });
+  run(ValidationTest::kIndependenceX, [&] { return independence_test(mech, mech_ind); });
+  run(ValidationTest::kDisplacementZero,
+      [&] { return candidate_test(mech, VectorXd::Ones(mech.rows())); });
+  run(ValidationTest::kStiffnessTempco,
+      [&] { return candidate_test(mech, mech.column(layout::kStiffness)); });
+  run(ValidationTest::kThermalResidual,
+      [&] { return candidate_test(mech, mech.column(layout::kThermalResidual)); });
 
   const int therm_white = therm.lags(settings_.whiteness_span);
   const int therm_ind = therm.lags(settings_.independence_span);
-  set(ValidationTest::kWhitenessT, whiteness_test(therm, therm_white));
-  set(ValidationTest::kNoiseRatioT,
-      noise_ratio_test(rss_[1], samples_, therm.jacobian.cols(), settings_.declared_noise[1]));
-  set(ValidationTest::kIndependenceT, independence_test(therm, therm_ind));
+  run(ValidationTest::kWhitenessT, [&] { return whiteness_test(therm, therm_white); });
+  run(ValidationTest::kNoiseRatioT, [&] {
+    return noise_ratio_test(rss_[1], samples_, therm.jacobian.cols(), settings_.declared_noise[1]);
+  });
+  run(ValidationTest::kIndependenceT, [&] { return independence_test(therm, therm_ind); });
   // Each given the other, so that a room drifting from where it was at the window's start is not
   // read as an offset (its mean), nor an offset as a drift: the offset is the level at the
   // window's first sample, the drift the slope.
   const VectorXd ones = VectorXd::Ones(therm.rows()), time = therm.column(layout::kTime);
-  set(ValidationTest::kAmbientOffset, candidate_test(therm, ones, time));
-  set(ValidationTest::kAmbientDrift, candidate_test(therm, time, ones));
-  set(ValidationTest::kSensorLag, candidate_test(therm, therm.column(layout::kLag)));
-  set(ValidationTest::kResistanceTempco, candidate_test(therm, therm.column(layout::kResistance)));
-  set(ValidationTest::kCoolingTempco, candidate_test(therm, therm.column(layout::kCooling)));
+  run(ValidationTest::kAmbientOffset, [&] { return candidate_test(therm, ones, time); });
+  run(ValidationTest::kAmbientDrift, [&] { return candidate_test(therm, time, ones); });
+  run(ValidationTest::kSensorLag,
+      [&] { return candidate_test(therm, therm.column(layout::kLag)); });
+  run(ValidationTest::kResistanceTempco,
+      [&] { return candidate_test(therm, therm.column(layout::kResistance)); });
+  run(ValidationTest::kCoolingTempco,
+      [&] { return candidate_test(therm, therm.column(layout::kCooling)); });
 
   const double n = static_cast<double>(samples_);
   for (int c = 0; c < 2; ++c) {

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <iterator>
+#include <utility>
 #include <vector>
 
 #include "refine/model_simulator.hpp"
@@ -83,6 +85,30 @@ SensitivityDeviation sensitivity_deviation(const std::vector<WindowSample>& w,
     worst.tbar = std::max(worst.tbar, e[1]);
   }
   return worst;
+}
+
+bool same_bits(const ThermalPiece& a, const ThermalPiece& b) {
+  const double pa[] = {a.decay, a.gain,  a.mean_of_start, a.mean_of_input, a.dgain_dtheta5, a.gain1,
+                       a.gain2, a.mean1, a.mean2,         a.dgain1,        a.dgain2};
+  const double pb[] = {b.decay, b.gain,  b.mean_of_start, b.mean_of_input, b.dgain_dtheta5, b.gain1,
+                       b.gain2, b.mean1, b.mean2,         b.dgain1,        b.dgain2};
+  return std::equal(std::begin(pa), std::end(pa), std::begin(pb));
+}
+
+// The cache answers for the two (θ5, τ) it saw last, in any order, and for a third computes it:
+// always the piece thermal_piece() computes, to the bit.
+TEST(ModelSimulator, TheThermalCacheAnswersForEachOfItsKeys) {
+  const double th5 = 0.06, tau_a = 0.0009999999999763531, tau_b = 0.0010000000000047748;
+  ThermalCache cache;
+  for (int round = 0; round < 3; ++round) {
+    for (const double tau : {tau_a, tau_b, tau_b, tau_a}) {
+      EXPECT_TRUE(same_bits(cache.get(th5, tau), thermal_piece(th5, tau))) << tau;
+    }
+  }
+  for (const auto& [theta5, tau] : {std::pair{0.07, tau_a}, std::pair{th5, 0.002},
+                                    std::pair{th5, tau_a}, std::pair{0.07, tau_a}})
+    EXPECT_TRUE(same_bits(cache.get(theta5, tau), thermal_piece(theta5, tau)))
+        << theta5 << " " << tau;
 }
 
 TEST(ModelSimulator, SensitivitiesAgreeWithCentralDifferences) {

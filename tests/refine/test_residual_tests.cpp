@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <random>
+#include <vector>
 
 #include "refine/block_means.hpp"
 #include "refine/probability.hpp"
@@ -108,6 +109,40 @@ TEST(BlockMeans, AGapLeavesNoEmptyBlock) {
   EXPECT_EQ(c[0], 2.0);
   EXPECT_EQ(c[1], 2.0);
   EXPECT_EQ(c[2], 1.0);
+}
+
+// accumulate() keeps a sample that is not past the open block's end in that block without
+// computing its index: the blocks must still be the ones floor((t − t0)/block) names, for samples
+// a few ulps either side of every edge and for a clock that counts from the epoch.
+TEST(BlockMeans, ASampleOnEitherSideOfAnEdgeIsInTheBlockItsIndexNames) {
+  for (const double t0 : {0.0, 12.5, 1.7e9}) {
+    const double block = 0.1;
+    BlockMeans store(block, 1, 1000);
+    std::vector<long> expected_counts;
+    long previous_index = -1;
+    const auto add = [&](double t) {
+      store.accumulate(t)[0] += 1.0;
+      const long index = static_cast<long>(std::floor((t - t0) / block));
+      if (index != previous_index) expected_counts.push_back(0);
+      ++expected_counts.back();
+      previous_index = index;
+    };
+    add(t0);
+    for (int edge = 1; edge <= 20; ++edge) {
+      const double at = t0 + edge * block;
+      // The representable instants nearest the edge, in order.
+      double before = at;
+      for (int i = 0; i < 3; ++i) before = std::nextafter(before, -1.0);
+      for (double t = before; t <= at + 4.0 * (at - before); t = std::nextafter(t, 2.0 * at + 1.0))
+        add(t);
+      add(at + 0.5 * block);
+    }
+    const VectorXd c = store.counts();
+    ASSERT_EQ(c.size(), static_cast<Eigen::Index>(expected_counts.size())) << t0;
+    for (Eigen::Index b = 0; b < c.size(); ++b)
+      EXPECT_EQ(c[b], static_cast<double>(expected_counts[static_cast<std::size_t>(b)]))
+          << "t0 " << t0 << " block " << b;
+  }
 }
 
 // A regression design of M rows: X the fit's span (a constant and a slow sine), Z two candidates

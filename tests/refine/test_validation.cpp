@@ -12,6 +12,7 @@
 #include <random>
 #include <vector>
 
+#include "refine/parameters.hpp"
 #include "refine/probability.hpp"
 #include "refine/validate_fit.hpp"
 #include "refine/validation.hpp"
@@ -221,6 +222,38 @@ TEST(Validation, ASampleThatIsNotFiniteOrGoesBackIsLeftOut) {
   EXPECT_EQ(r.samples, 1u);
   EXPECT_EQ(r.skipped, 3u);
   EXPECT_EQ(r.mechanical.residual_rms, 0.0);
+}
+
+// A sensitivity that is not finite leaves the sample out too, whether the sample carries one
+// column per slot of p (the fit's passes) or another number of them.
+TEST(Validation, ASampleWithASensitivityNotFiniteIsLeftOut) {
+  for (const int columns : {kParams, 3}) {
+    ValidationSettings settings = n1_settings();
+    settings.jacobian_columns = columns;
+    ResidualValidator v(paper_theta(), settings);
+    std::vector<double> jx(static_cast<std::size_t>(columns), 0.5), jt = jx;
+    ValidationSample s;
+    s.x_model = s.x = 1e-3;
+    s.tbar_model = s.tbar = 40.0;
+    s.jacobian_x = jx;
+    s.jacobian_tbar = jt;
+    v.add(s);
+    for (const double bad :
+         {std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity(),
+          std::numeric_limits<double>::quiet_NaN()}) {
+      for (std::vector<double>* j : {&jx, &jt}) {
+        j->back() = bad;
+        s.t += 1e-3;
+        v.add(s);
+        j->back() = 0.5;
+      }
+    }
+    s.t += 1e-3;
+    v.add(s);
+    const ValidationReport r = v.finish();
+    EXPECT_EQ(r.samples, 2u) << columns;
+    EXPECT_EQ(r.skipped, 6u) << columns;
+  }
 }
 
 TEST(Validation, NoSamplesIsUntested) {
