@@ -40,6 +40,14 @@ json run_batch(const TempDir& dir, const json& cfg) {
   return summary_of(r);
 }
 
+// A run that must stay `ok`: no event at all, and enough fits that the monitor had references.
+void expect_stayed_ok(const json& s) {
+  ASSERT_TRUE(s.contains("health")) << s.dump();
+  EXPECT_EQ(s["health"]["state"], "ok") << s["health"].dump();
+  EXPECT_TRUE(s["health_events"].empty()) << s["health_events"].dump();
+  EXPECT_GE(s["refine"]["converged_fits"].get<int>(), 10) << s["refine"].dump();
+}
+
 // R +10 % at 300 s: θ6 = 1/(R·Cth) falls by 9.1 %, nothing else moves. The monitor must say
 // `changed`, name θ6 first with a change near −9.1 %, and put the onset within seconds of the
 // step; nothing may be raised before the step.
@@ -64,11 +72,7 @@ TEST(Health, StepOfResistanceIsReportedAsChangedNamingTheParameter) {
 // The same plant without the step: no event at all.
 TEST(Health, CleanRunStaysOk) {
   TempDir dir;
-  const json s = run_batch(dir, batch_config(dir.path(), "none", 1.0));
-  ASSERT_TRUE(s.contains("health")) << s.dump();
-  EXPECT_EQ(s["health"]["state"], "ok") << s["health"].dump();
-  EXPECT_TRUE(s["health_events"].empty()) << s["health_events"].dump();
-  EXPECT_GE(s["refine"]["converged_fits"].get<int>(), 10) << s["refine"].dump();
+  expect_stayed_ok(run_batch(dir, batch_config(dir.path(), "none", 1.0)));
 }
 
 // A clean plant whose temperature sensor lags by 0.3 s (a thermocouple in its sheath): the
@@ -78,11 +82,7 @@ TEST(Health, CleanRunWithALaggingTemperatureSensorStaysOk) {
   TempDir dir;
   json cfg = batch_config(dir.path(), "none", 1.0);
   cfg["driver"]["sim"]["sensor"]["temperature_lag_s"] = 0.3;
-  const json s = run_batch(dir, cfg);
-  ASSERT_TRUE(s.contains("health")) << s.dump();
-  EXPECT_EQ(s["health"]["state"], "ok") << s["health"].dump();
-  EXPECT_TRUE(s["health_events"].empty()) << s["health_events"].dump();
-  EXPECT_GE(s["refine"]["converged_fits"].get<int>(), 10) << s["refine"].dump();
+  expect_stayed_ok(run_batch(dir, cfg));
 }
 
 // A clean plant read by sensors whose noise is coloured (a first-order Gauss–Markov process of
@@ -93,11 +93,7 @@ TEST(Health, CleanRunWithColouredSensorNoiseStaysOk) {
   TempDir dir;
   json cfg = batch_config(dir.path(), "none", 1.0);
   cfg["driver"]["sim"]["noise"]["correlation_s"] = 0.02;
-  const json s = run_batch(dir, cfg);
-  ASSERT_TRUE(s.contains("health")) << s.dump();
-  EXPECT_EQ(s["health"]["state"], "ok") << s["health"].dump();
-  EXPECT_TRUE(s["health_events"].empty()) << s["health_events"].dump();
-  EXPECT_GE(s["refine"]["converged_fits"].get<int>(), 10) << s["refine"].dump();
+  expect_stayed_ok(run_batch(dir, cfg));
 }
 
 // Real time: short windows so that a fit converges within seconds.
