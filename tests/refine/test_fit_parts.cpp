@@ -164,8 +164,8 @@ TEST(FitTerms, TheDefaultsAreThePapersModel) {
 }
 
 TEST(Coordinates, MapTheFreeSlotsInOrderAndHoldTheRest) {
-  ParamVector base;
-  base << 10, 11, 12, 13, 14, 15, 16, 17, 18;
+  ParamVector base = ParamVector::Zero();  // the optional slots' too: NaN != NaN
+  base.head<9>() << 10, 11, 12, 13, 14, 15, 16, 17, 18;
   FreeMask free{};
   free[kTbar0] = free[kDampingSlope] = free[kCooling] = true;
   const Coordinates c(free, base);
