@@ -74,8 +74,11 @@ TrialCovariance covariance_sums(const FitContext& ctx, int lags) {
   const FreeMask free = fit_slots(ctx.settings);
   ValidationSettings vs;
   vs.declared_noise = ctx.settings.declared_noise;
-  sums.validator = [window = ctx.window, free, vs](const Vector6& theta) {
-    return std::make_shared<ResidualValidator>(theta, validation_settings(window, theta, free, vs));
+  sums.validator = [window = ctx.window, free, vs](const ParamVector& p) {
+    const Vector6 theta = theta_of(p);
+    const AmbientError ambient{p[kAmbientOffsetSlot], p[kAmbientDriftSlot]};
+    return std::make_shared<ResidualValidator>(
+        theta, validation_settings(window, theta, free, vs, ambient));
   };
   return sums;
 }
@@ -91,7 +94,7 @@ CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, Fi
   ps.hac_bandwidth = sums.hac_bandwidth;
   ps.batches = sums.batches;
   const std::shared_ptr<ResidualValidator> validator =
-      reuse ? state.joint.validator : sums.validator(theta_of(state.p));
+      reuse ? state.joint.validator : sums.validator(state.p);
   ps.validator = validator.get();
   const PassResult pass = reuse ? state.joint.pass : ctx.budget.pass(ctx.window, state.p, ps);
   result.evaluations = ctx.budget.evaluations();

@@ -75,7 +75,7 @@ PassResult stage_pass(std::span<const WindowSample> window, const ParamVector& p
   PassSettings ps = pass_settings;
   ps.hac_bandwidth = sums->hac_bandwidth;
   ps.batches = sums->batches;
-  validator = sums->validator(theta_of(p));
+  validator = sums->validator(p);
   ps.validator = validator.get();
   return budget.pass(window, p, ps);
 }

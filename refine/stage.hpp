@@ -76,8 +76,8 @@ struct Coordinates {
 struct TrialCovariance {
   int hac_bandwidth = 0;
   int batches = 0;
-  // A fresh validator for a trial at θ.
-  std::function<std::shared_ptr<ResidualValidator>(const Vector6& theta)> validator;
+  // A fresh validator for a trial at p (θ and the nuisance terms).
+  std::function<std::shared_ptr<ResidualValidator>(const ParamVector& p)> validator;
 };
 
 // How a stage runs its Levenberg–Marquardt (LmSettings's members of the same names).

@@ -18,15 +18,26 @@ double mean_square_voltage(const WindowSample& prev, const WindowSample& cur,
   return tau > 0.0 ? sum / tau : cur.voltage * cur.voltage;
 }
 
+namespace {
+
+double mean_model_tbar(std::span<const WindowSample> window, const AmbientError& ambient) {
+  if (window.empty()) return 0.0;
+  double sum = 0.0;
+  for (const WindowSample& w : window) {
+    sum += w.tbar - ambient.offset - ambient.drift_per_s * (w.t - window.front().t);
+  }
+  return sum / static_cast<double>(window.size());
+}
+
+}  // namespace
+
 ValidationSettings validation_settings(std::span<const WindowSample> window, const Vector6& theta,
                                        const std::optional<FreeMask>& free,
-                                       const ValidationSettings& base) {
+                                       const ValidationSettings& base,
+                                       const AmbientError& ambient) {
   ValidationSettings v = base;
   if (!(v.mechanical_time_constant_s > 0.0) || !(v.thermal_time_constant_s > 0.0)) {
-    double mean_tbar = 0.0;
-    for (const WindowSample& w : window) mean_tbar += w.tbar;
-    if (!window.empty()) mean_tbar /= static_cast<double>(window.size());
-    const ModelTimeConstants tc = model_time_constants(theta, mean_tbar);
+    const ModelTimeConstants tc = model_time_constants(theta, mean_model_tbar(window, ambient));
     if (!(v.mechanical_time_constant_s > 0.0)) v.mechanical_time_constant_s = tc.mechanical_s;
     if (!(v.thermal_time_constant_s > 0.0)) v.thermal_time_constant_s = tc.thermal_s;
   }
@@ -63,7 +74,9 @@ ValidationReport validate_fit(std::span<const WindowSample> window, const FitRes
     *coefficient[i] = e.kept ? e.value : 0.0;
     extended = extended || e.kept;
   }
-  settings = validation_settings(window, fit.theta, free, settings);
+  settings = validation_settings(
+      window, fit.theta, free, settings,
+      AmbientError{fit.nuisance.ambient_offset.value, fit.nuisance.ambient_drift.value});
   if (window.empty()) return ResidualValidator(fit.theta, settings).finish();
   ResidualValidator validator(fit.theta, settings);
   SensitivitySimulator sim(fit.theta, fit.initial_state, false, tc, extended);

@@ -13,16 +13,24 @@
 
 namespace scp::refine {
 
+// The fitted error of the measured T̄ (refine::tbar_output): the model's own T̄ is the measured
+// one less this, and the model's time constants are taken at the model's T̄.
+struct AmbientError {
+  double offset = 0.0;
+  double drift_per_s = 0.0;  // from the window's first sample
+};
+
 // The validation's settings for the model at θ on `window`: `base` (declared noise, level, blocks,
 // lags, floor, tests switched off) with its time constants ≤ 0 taken from θ at the window's mean
-// measured T̄ (model_time_constants), and
+// T̄ as the model sees it (measured, less `ambient`; model_time_constants), and
 // - with `free` (a fit's kParams sensitivities fed): the columns of the slots the fit held fixed
 //   not projected off, and the targeted tests of the nuisance terms it estimated switched off;
 // - without (std::nullopt: a prediction, e.g. the paper law's): no sensitivities.
 // `window` as the model read it (a fit's: refine::prepare_window's output).
 ValidationSettings validation_settings(std::span<const WindowSample> window, const Vector6& theta,
                                        const std::optional<FreeMask>& free,
-                                       const ValidationSettings& base = {});
+                                       const ValidationSettings& base = {},
+                                       const AmbientError& ambient = {});
 
 // V² averaged over (prev.t, cur.t] as the model sees it (the pieces of pieces_between, the voltage
 // switching `input_delay` later than recorded): the thermal block's input for a validation sample.

@@ -345,5 +345,28 @@ TEST(Validation, SettingsComeFromTheWindowThetaAndTheFreeSlots) {
   EXPECT_FALSE(p.disabled[static_cast<int>(ValidationTest::kDisplacementZero)]);
 }
 
+// A fit that estimated the sensor's ambient error reads T̄ as the measured one less that error:
+// its time constants are the model's at the model's T̄, not at the thermocouple's.
+TEST(Validation, SettingsTakeTheTimeConstantsAtTheModelsTbar) {
+  const Vector6& th = paper_theta();
+  constexpr double kOffset = -2.0, kDrift = 2.0 / 3600.0;  // a room 2 °C low, drifting 2 °C/h
+  std::vector<WindowSample> model(3), measured(3);
+  for (int k = 0; k < 3; ++k) {
+    model[k].t = measured[k].t = 100.0 + 50.0 * k;
+    model[k].tbar = 10.0 + 10.0 * k;
+    measured[k].tbar = model[k].tbar + kOffset + kDrift * (model[k].t - model[0].t);
+  }
+  FreeMask free = free_slots({});
+  free[kAmbientOffsetSlot] = free[kAmbientDriftSlot] = true;
+  const ValidationSettings want = validation_settings(model, th, free);
+  const ValidationSettings got =
+      validation_settings(measured, th, free, {}, AmbientError{kOffset, kDrift});
+  EXPECT_DOUBLE_EQ(got.mechanical_time_constant_s, want.mechanical_time_constant_s);
+  EXPECT_DOUBLE_EQ(got.thermal_time_constant_s, want.thermal_time_constant_s);
+  // The measured mean is 1.9 °C off the model's: a different mechanical constant.
+  EXPECT_NE(validation_settings(measured, th, free).mechanical_time_constant_s,
+            want.mechanical_time_constant_s);
+}
+
 }  // namespace
 }  // namespace scp::refine
