@@ -47,9 +47,9 @@ StopReason fit_ratios(FitContext& ctx, FitState& state, std::span<const WindowSa
 }
 
 // (b2): the scale s of θ1..θ4 by cost-only passes over ln s ∈ [−ln 900, 0]; then the start
-// (`theta_before`) instead if it fits better.
+// (`before`) instead if it fits better.
 StopReason search_scale_factor(FitContext& ctx, FitState& state, std::span<const WindowSample> head,
-                               const Eigen::Vector4d& theta_before) {
+                               const ParamVector& before) {
   Budget& budget = ctx.budget;
   ParamVector& p = state.p;
   const auto stopped = [&] { return budget.stop() != StopReason::none; };
@@ -85,15 +85,27 @@ StopReason search_scale_factor(FitContext& ctx, FitState& state, std::span<const
                      stopped, state.iterations);
   if (golden.cost < best_cost) best_ln = golden.x;
   p.head<kMechanicalSize>() *= std::exp(best_ln);
-  // A start that already fits better (the previous window's refined θ, an underdamped actuator
-  // whose quasi-static ratios mislead) is kept.
-  ParamVector q = p;
-  q.head<kMechanicalSize>() = theta_before;
-  const PassResult at_start = budget.pass(head, q, ps);
-  ++state.iterations;
-  if (at_start.finite && stable_over(q, widened(state.range, at_start)) &&
-      at_start.cost < std::min(best_cost, golden.cost))
-    p = q;
+  // A start that already fits better is kept, first with its own initial state and zero (the
+  // previous window's refined fit: the state the ratios were fitted with belongs to another scale
+  // and makes it look worse, and the mechanical stage then creeps along the scale from the
+  // search's tolerance), then with the ratios' state (an underdamped actuator whose quasi-static
+  // ratios mislead).
+  const double found = std::min(best_cost, golden.cost);
+  for (const bool own_state : {true, false}) {
+    if (stopped()) break;
+    ParamVector q = p;
+    q.head<kMechanicalSize>() = before.head<kMechanicalSize>();
+    if (own_state) {
+      for (const int i : {kX0, kXdot0, kXZeroSlot}) q[i] = before[i];
+    }
+    const PassResult at_start = budget.pass(head, q, ps);
+    ++state.iterations;
+    if (at_start.finite && stable_over(q, widened(state.range, at_start)) &&
+        at_start.cost < found) {
+      p = q;
+      break;
+    }
+  }
   return budget.stop();
 }
 
@@ -103,9 +115,9 @@ StopReason search_scale(FitContext& ctx, FitState& state) {
   for (const int i : kMechanicalTheta)
     if (ctx.settings.known[static_cast<std::size_t>(i)]) return StopReason::none;
   const std::span<const WindowSample> head = search_prefix(ctx.window);
-  const Eigen::Vector4d theta_before = state.p.head<kMechanicalSize>();
+  const ParamVector before = state.p;
   if (const StopReason stop = fit_ratios(ctx, state, head); stop != StopReason::none) return stop;
-  return search_scale_factor(ctx, state, head, theta_before);
+  return search_scale_factor(ctx, state, head, before);
 }
 
 void start_with_positive_damping(const FitContext& ctx, FitState& state) {

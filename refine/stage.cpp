@@ -112,6 +112,9 @@ StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c
     const ParamVector p = c.to_p(z);
     // A non-finite θ is a failed step, never a simulation.
     if (!z.allFinite() || !p.allFinite()) return e;
+    // A model unstable over the T̄ range already known fails whatever its pass gives (its own range
+    // only widens that one): a failed step without simulating toward its overflow.
+    if (!pass_settings.thermal_only && !stable_over(p, range)) return e;
     e.pass = stage_pass(window, p, pass_settings, trial ? options.trial_covariance : nullptr,
                         budget, e.validator);
     // An unstable model (negative damping at some T̄ of the window, θ3 or θ5 ≤ 0) counts as not
