@@ -151,15 +151,21 @@ FitResult fit_prepared(std::span<const WindowSample> window, const Vector6& thet
 // The full staged fit (without FitSettings::warm).
 FitResult fit_cold(std::span<const WindowSample> window, const Vector6& theta_start,
                    const FitSettings& settings) {
-  const IntervalChoice choice = settings.voltage_interval == VoltageInterval::estimate
-                                    ? weigh_voltage_interval(window, theta_start, settings)
-                                    : IntervalChoice{settings.voltage_interval, IntervalEvidence{}};
+  IntervalChoice choice;
+  if (settings.voltage_interval == VoltageInterval::estimate) {
+    choice = weigh_voltage_interval(window, theta_start, settings);
+  } else {
+    choice.interval = settings.voltage_interval;
+    choice.switches = choose_switch_phase(window, choice.interval, theta_start, settings);
+  }
   std::vector<WindowSample> storage;
-  FitResult result = fit_prepared(prepare_window(window, settings.voltage_hold, choice.interval,
-                                                 storage, settings.voltage_shape),
-                                  theta_start, settings);
+  FitResult result =
+      fit_prepared(prepare_window(window, settings.voltage_hold, choice.interval, storage,
+                                  settings.voltage_shape, choice.switches.phase),
+                   theta_start, settings);
   result.voltage_interval = choice.interval;
   result.voltage_interval_evidence = choice.evidence;
+  result.voltage_switches = choice.switches;
   return result;
 }
 

@@ -191,6 +191,8 @@ struct FitResult {
   // the guessed interval's (refine/voltage_timing.hpp).
   VoltageInterval voltage_interval = VoltageInterval::before;
   IntervalEvidence voltage_interval_evidence;
+  // A smooth voltage's switches and where in their intervals the fit put them (foh, smooth).
+  SwitchPhase voltage_switches;
   // The nuisance terms and extensions as the fit left them (refine/fit_terms.hpp).
   Nuisance nuisance;
   // FitSettings estimates the sensor's lag, but this window could not tell it from the thermal

@@ -6,6 +6,7 @@
 // structs; the defaults are the fit's behaviour before these terms existed. docs/numerics.md
 // describes each term.
 
+#include <cstddef>
 #include <cstdint>
 
 #include "common/names.hpp"
@@ -41,6 +42,14 @@ struct IntervalEvidence {
   bool determined = true;
   double statistic = 0.0;
   double threshold = 0.0;
+};
+
+// A smooth voltage's switches (refine/voltage_timing.hpp, hold_voltage_switches): how many a
+// window has and where in their intervals the fit put them (0: just after the previous sample, 1:
+// at the row's own instant).
+struct SwitchPhase {
+  std::size_t count = 0;
+  double phase = 0.0;
 };
 
 // How a voltage read with a first-order hold (estimator::VoltageHold::foh) varied between the

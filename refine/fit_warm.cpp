@@ -125,6 +125,7 @@ WarmStart warm_start(const FitResult& fit, const FitSettings& settings, const Wi
   w.input_delay_sigma_inflation = fit.input_delay_sigma_inflation;
   w.voltage_interval = fit.voltage_interval;
   w.voltage_interval_evidence = fit.voltage_interval_evidence;
+  w.voltage_switches = fit.voltage_switches;
   w.extensions = fit.extensions;
   w.hac_lags = fit.hac_lags;
   return w;
@@ -168,6 +169,7 @@ FitResult joint_refit(std::span<const WindowSample> prepared, const WarmStart& f
   result.theta = from.theta;
   result.voltage_interval = from.voltage_interval;
   result.voltage_interval_evidence = from.voltage_interval_evidence;
+  result.voltage_switches = from.voltage_switches;
   result.samples = prepared.size();
   result.t_begin = prepared.front().t;
   result.t_end = prepared.back().t;
@@ -197,8 +199,9 @@ FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
   if (const WarmFallback why = applicable(warm, window, settings); why != WarmFallback::none)
     return declined(result, why);
   std::vector<WindowSample> storage;
-  const std::span<const WindowSample> prepared = prepare_window(
-      window, settings.voltage_hold, warm.voltage_interval, storage, settings.voltage_shape);
+  const std::span<const WindowSample> prepared =
+      prepare_window(window, settings.voltage_hold, warm.voltage_interval, storage,
+                     settings.voltage_shape, warm.voltage_switches.phase);
   result = joint_refit(prepared, warm, with_chosen_extensions(settings, warm.extensions),
                        kWarmIterations, true);
   if (!result.validated && !result.converged) return declined(result, WarmFallback::not_converged);

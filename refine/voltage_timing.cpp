@@ -1,5 +1,6 @@
 #include "refine/voltage_timing.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
@@ -11,8 +12,8 @@ namespace scp::refine {
 
 std::span<const WindowSample> prepare_window(std::span<const WindowSample> window,
                                              estimator::VoltageHold hold, VoltageInterval interval,
-                                             std::vector<WindowSample>& storage,
-                                             VoltageShape shape) {
+                                             std::vector<WindowSample>& storage, VoltageShape shape,
+                                             double switch_phase) {
   const bool power = measures_current(window);
   if ((reads_as_recorded(hold, interval) && !power) || window.empty()) return window;
   storage.assign(window.begin(), window.end());
@@ -22,8 +23,10 @@ std::span<const WindowSample> prepare_window(std::span<const WindowSample> windo
     // Each row's voltage is now the one that drove its current (refine/heater_power.hpp).
     use_measured_power(storage, reference_resistance(window, interval));
   }
-  if (hold == estimator::VoltageHold::foh && shape == VoltageShape::smooth)
+  if (hold == estimator::VoltageHold::foh && shape == VoltageShape::smooth) {
     add_cubic_midpoints(storage);
+    hold_voltage_switches(storage, switch_phase);
+  }
   return storage;
 }
 
@@ -95,6 +98,30 @@ IntervalChoice decided_by(double margin) {
   return out;
 }
 
+// The thermal criterion at the best of kSwitchPhases on `window` prepared under `interval` (one
+// evaluation, phase 0, where the voltage does not switch).
+struct PhasedCriterion {
+  ThermalCriterion criterion;
+  SwitchPhase switches;
+};
+
+PhasedCriterion best_switch_phase(std::span<const WindowSample> window, VoltageInterval interval,
+                                  const Vector6& theta_start, const FitSettings& settings,
+                                  std::vector<WindowSample>& storage) {
+  PhasedCriterion best;
+  for (const double phase : kSwitchPhases) {
+    const std::span<const WindowSample> prepared = prepare_window(
+        window, settings.voltage_hold, interval, storage, settings.voltage_shape, phase);
+    const std::size_t count =
+        settings.voltage_hold == estimator::VoltageHold::foh ? count_voltage_switches(prepared) : 0;
+    const ThermalCriterion c = thermal_criterion(prepared, theta_start, settings);
+    if (phase == kSwitchPhases.front() || c.score < best.criterion.score)
+      best = {c, {count, phase}};
+    if (count == 0) break;
+  }
+  return best;
+}
+
 // The interval from the thermal fits with the lag held at 0 and free, each [before, after].
 IntervalChoice pick_interval(const std::array<ThermalCriterion, 2>& held,
                              const std::array<ThermalCriterion, 2>& free, bool lag_free,
@@ -132,14 +159,31 @@ IntervalChoice weigh_voltage_interval(std::span<const WindowSample> window,
   if (lag_free) held.nuisance.sensor_lag = {.fixed = true, .value = 0.0};
   std::vector<WindowSample> storage;
   std::array<ThermalCriterion, 2> held_fit, free_fit;
+  std::array<SwitchPhase, 2> switches;
   const std::array<VoltageInterval, 2> intervals{VoltageInterval::before, VoltageInterval::after};
   for (std::size_t i = 0; i < intervals.size(); ++i) {
-    const std::span<const WindowSample> prepared = prepare_window(
-        window, settings.voltage_hold, intervals[i], storage, settings.voltage_shape);
-    held_fit[i] = thermal_criterion(prepared, theta_start, held);
-    if (lag_free) free_fit[i] = thermal_criterion(prepared, theta_start, settings);
+    const PhasedCriterion phased =
+        best_switch_phase(window, intervals[i], theta_start, held, storage);
+    held_fit[i] = phased.criterion;
+    switches[i] = phased.switches;
+    if (!lag_free) continue;
+    const std::span<const WindowSample> prepared =
+        prepare_window(window, settings.voltage_hold, intervals[i], storage, settings.voltage_shape,
+                       switches[i].phase);
+    free_fit[i] = thermal_criterion(prepared, theta_start, settings);
   }
-  return pick_interval(held_fit, free_fit, lag_free, window);
+  IntervalChoice choice = pick_interval(held_fit, free_fit, lag_free, window);
+  choice.switches = switches[choice.interval == VoltageInterval::after ? 1 : 0];
+  return choice;
+}
+
+SwitchPhase choose_switch_phase(std::span<const WindowSample> window, VoltageInterval interval,
+                                const Vector6& theta_start, const FitSettings& settings) {
+  if (settings.voltage_hold != estimator::VoltageHold::foh ||
+      settings.voltage_shape != VoltageShape::smooth)
+    return {};
+  std::vector<WindowSample> storage;
+  return best_switch_phase(window, interval, theta_start, settings, storage).switches;
 }
 
 }  // namespace scp::refine

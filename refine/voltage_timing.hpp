@@ -11,10 +11,12 @@
 //   (WindowSample::voltage_ramp), and the model integrates it exactly (ThermalPiece), the
 //   mechanical block seeing T̄'s exact mean over each piece.
 
+#include <array>
 #include <span>
 #include <vector>
 
 #include "refine/fit.hpp"
+#include "refine/voltage_switches.hpp"
 
 namespace scp::refine {
 
@@ -25,22 +27,24 @@ constexpr bool reads_as_recorded(estimator::VoltageHold hold, VoltageInterval in
 }
 
 // `window` as the model reads it under `hold` and `interval` (before or after), and with foh
-// `shape`: `window` itself when it reads_as_recorded and has no currents, else `storage` filled
-// and returned. With the heater's current in every sample, each row's voltage becomes its heating
-// voltage, whose square is the measured power times R_ref (refine/heater_power.hpp).
+// `shape` (smooth: with its switches held at `switch_phase`, hold_voltage_switches): `window`
+// itself when it reads_as_recorded and has no currents, else `storage` filled and returned. With
+// the heater's current in every sample, each row's voltage becomes its heating voltage, whose
+// square is the measured power times R_ref (refine/heater_power.hpp).
 std::span<const WindowSample> prepare_window(std::span<const WindowSample> window,
                                              estimator::VoltageHold hold, VoltageInterval interval,
                                              std::vector<WindowSample>& storage,
-                                             VoltageShape shape = VoltageShape::linear);
+                                             VoltageShape shape = VoltageShape::linear,
+                                             double switch_phase = 0.0);
 
 // VoltageHold::foh with VoltageShape::smooth: each interval's midpoint voltage
 // (WindowSample::voltage_mid) from the cubic through the rows before and after it, where the four
 // are equally spaced (within 1e-6 of a period): V² is then exact to O(Δ⁴·V'''') where the chord's
 // V² is off by Δ²·V''/8 (of V·V''). On a continuous voltage that difference is what the inertia of
 // θ1..θ4 (a 0.8 ms lag between heating and motion) sees: docs/numerics.md, "The voltage's timing".
-// prepare_window calls it; the rows at a window's ends and beside a gap keep the chord. Wrong for a
-// DAC that ramps linearly between commands (VoltageShape::linear), whose slope changes at every
-// row.
+// prepare_window calls it; the rows at a window's ends and beside a gap or a switch keep the
+// chord. Wrong for a DAC that ramps linearly between commands (VoltageShape::linear), whose slope
+// changes at every row.
 void add_cubic_midpoints(std::span<WindowSample> window) noexcept;
 
 // Row `cur` as the model reads it under `hold` and `interval` (before or after), `prev` the row
@@ -57,6 +61,15 @@ WindowSample prepared_sample(const WindowSample& prev, const WindowSample& cur,
 // `before` by one slot's price. A row's interval is a whole sample period of the voltage's timing,
 // which T̄ resolves to a fraction of a µs (refine/input_delay.hpp); x could not tell (θ1..θ4's
 // common scale is a sub-millisecond lag). `before` when neither can be fitted.
+// Where in their intervals a smooth voltage's switches fell (hold_voltage_switches): of the phases
+// kSwitchPhases, the one whose thermal fit (θ5, θ6, T̄0 on T̄, the sensor lag held at `settings`'
+// or 0) has the least residual variance. A switch's heat moves by (B² − A²)·Δ·θ6 across its
+// interval, alternating in sign: T̄ resolves it where the switches are many (hundreds in 300 s of a
+// 1 s PRBS) and the sensor fine. Phase 0 and no evaluation where there are no switches.
+inline constexpr std::array<double, 3> kSwitchPhases{0.0, 0.5, 1.0};
+SwitchPhase choose_switch_phase(std::span<const WindowSample> window, VoltageInterval interval,
+                                const Vector6& theta_start, const FitSettings& settings);
+
 VoltageInterval choose_voltage_interval(std::span<const WindowSample> window,
                                         const Vector6& theta_start, const FitSettings& settings);
 
@@ -65,6 +78,7 @@ VoltageInterval choose_voltage_interval(std::span<const WindowSample> window,
 struct IntervalChoice {
   VoltageInterval interval = VoltageInterval::before;
   IntervalEvidence evidence;
+  SwitchPhase switches;  // of a foh smooth voltage's switches under `interval`
 };
 IntervalChoice weigh_voltage_interval(std::span<const WindowSample> window,
                                       const Vector6& theta_start, const FitSettings& settings);

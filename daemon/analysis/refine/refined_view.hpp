@@ -81,6 +81,7 @@ struct RefinedView {
   // Undetermined (estimated, not determined): the window could not tell the intervals apart, and
   // `best` keeps off the refined estimate (best.hpp).
   scp::refine::IntervalEvidence voltage_interval_evidence;
+  scp::refine::SwitchPhase voltage_switches;  // FitResult::voltage_switches
   scp::refine::Nuisance nuisance;
   scp::refine::Extensions extensions;
   scp::refine::HeaterResistance heater;  // measured: the thermal input was the measured power

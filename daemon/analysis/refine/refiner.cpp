@@ -89,6 +89,7 @@ void copy_result(const scp::refine::FitResult& r, RefinedView& v) noexcept {
   v.warm_fallback = r.warm_fallback;
   v.voltage_interval = r.voltage_interval;
   v.voltage_interval_evidence = r.voltage_interval_evidence;
+  v.voltage_switches = r.voltage_switches;
   v.nuisance = r.nuisance;
   v.extensions = r.extensions;
   v.heater = r.heater;
@@ -307,8 +308,9 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
       seed = Seed::paper;
     }
   }
-  const std::span<const scp::refine::WindowSample> prepared = scp::refine::prepare_window(
-      window_.samples(), voltage_hold_, r.voltage_interval, prepared_, settings_.voltage_shape);
+  const std::span<const scp::refine::WindowSample> prepared =
+      scp::refine::prepare_window(window_.samples(), voltage_hold_, r.voltage_interval, prepared_,
+                                  settings_.voltage_shape, r.voltage_switches.phase);
   validate(r, paper, prepared);
   const double duration =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
