@@ -109,6 +109,7 @@ WarmStart warm_start(const FitResult& fit, const FitSettings& settings, const Wi
   w.settings.cancel = nullptr;
   w.settings.warm = nullptr;
   w.converged = fit.converged;
+  w.t_begin = fit.t_begin;
   w.t_end = fit.t_end;
   w.theta = fit.theta;
   w.state = fit.initial_state;
@@ -160,6 +161,8 @@ WarmFallback applicable(const WarmStart& warm, std::span<const WindowSample> win
   if (window.empty() || warm.at.t != window.front().t || !(window.front().t <= warm.t_end))
     return WarmFallback::no_overlap;
   if (!warm.state.allFinite() || !warm.theta.allFinite()) return WarmFallback::no_overlap;
+  if (window.back().t - window.front().t > kWarmWindowGrowth * (warm.t_end - warm.t_begin))
+    return WarmFallback::window_grown;
   return WarmFallback::none;
 }
 
@@ -204,6 +207,8 @@ FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
                      settings.voltage_shape, warm.voltage_switches.phase);
   result = joint_refit(prepared, warm, with_chosen_extensions(settings, warm.extensions),
                        kWarmIterations, true);
+  if (settings.voltage_hold == estimator::VoltageHold::foh)
+    result.voltage_switches.count = count_voltage_switches(prepared);
   if (!result.validated && !result.converged) return declined(result, WarmFallback::not_converged);
   if (!result.converged) return declined(result, WarmFallback::verdict_failed);
   carry_choice(warm.extensions, settings.extensions, result.extensions);

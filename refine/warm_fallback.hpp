@@ -14,15 +14,19 @@ enum class WarmFallback : std::uint8_t {
   settings_changed,      // the previous fit was made with other settings
   not_converged_before,  // the previous fit did not converge
   no_overlap,            // the previous trajectory does not reach this window's first sample
-  not_converged,         // the joint stage did not converge within kWarmIterations
-  verdict_failed,        // the verdict on the warm solution failed
+  // The window is over twice the previous fit's: the choices a warm refit keeps (the voltage's
+  // interval and switches, `auto`'s extensions) are made again on data they have not seen.
+  window_grown,
+  not_converged,   // the joint stage did not converge within kWarmIterations
+  verdict_failed,  // the verdict on the warm solution failed
 };
-inline constexpr NameTable<WarmFallback, 7> kWarmFallbackNames{
+inline constexpr NameTable<WarmFallback, 8> kWarmFallbackNames{
     {{WarmFallback::none, "none"},
      {WarmFallback::not_requested, "not_requested"},
      {WarmFallback::settings_changed, "settings_changed"},
      {WarmFallback::not_converged_before, "not_converged_before"},
      {WarmFallback::no_overlap, "no_overlap"},
+     {WarmFallback::window_grown, "window_grown"},
      {WarmFallback::not_converged, "not_converged"},
      {WarmFallback::verdict_failed, "verdict_failed"}}};
 

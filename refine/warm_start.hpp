@@ -25,10 +25,16 @@ inline constexpr int kWarmIterations = 5;
 // and the step that reaches it from a converged neighbour is mostly the last one needed.
 inline constexpr double kWarmDecrementTolerance = 1e-3;
 
+// The longest window, as a multiple of the previous fit's, that a warm refit takes: past it, the
+// choices it keeps were made on less than half the data (WarmFallback::window_grown). A window
+// that slides keeps its length; one that grows from the daemon's start is refitted in full at
+// each doubling.
+inline constexpr double kWarmWindowGrowth = 2.0;
+
 struct WarmStart {
   FitSettings settings;  // what the previous fit was made with (cancel and warm cleared)
   bool converged = false;
-  double t_end = 0.0;  // the previous window's last sample
+  double t_begin = 0.0, t_end = 0.0;  // the previous window's first and last samples
   Vector6 theta = Vector6::Zero();
   InitialState state = InitialState::Zero();  // the previous fit's model at `at`
   WindowSample at;  // the sample `state` belongs to, as the model reads it (prepared_sample)

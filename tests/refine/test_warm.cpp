@@ -171,6 +171,17 @@ TEST_F(Fallback, WhenTheTrajectoryIsNotAtTheWindowsStart) {
   EXPECT_EQ(refit(second(), w, estimating()).warm_fallback, WarmFallback::no_overlap);
 }
 
+// A window over twice the previous fit's (as one growing from the daemon's start): the voltage's
+// interval and switches and `auto`'s choices, kept by a warm refit, are made again.
+TEST_F(Fallback, WhenTheWindowHasMoreThanDoubled) {
+  WarmStart w = warm();
+  const double span = second().back().t - second().front().t;
+  w.t_begin = w.t_end - 0.49 * span;
+  EXPECT_EQ(refit(second(), w, estimating()).warm_fallback, WarmFallback::window_grown);
+  w.t_begin = w.t_end - 0.51 * span;
+  EXPECT_NE(refit(second(), w, estimating()).warm_fallback, WarmFallback::window_grown);
+}
+
 TEST_F(Fallback, WhenTheStartIsFarFromTheSolution) {
   WarmStart w = warm();
   w.theta.head<4>() *= 0.3;  // the common scale of θ1..θ4 far off: not a few iterations away
