@@ -23,6 +23,15 @@ StopReason check_window(std::span<const WindowSample> window);
 ParamVector start_point(std::span<const WindowSample> window, const Vector6& theta_start,
                         const std::array<bool, kThetaSize>& known);
 
+// With the displacement sensor's zero estimated, after the thermal stage: the zero as the
+// constant of the static line x ≈ zero − g·T̄ fitted to the window (T̄ as the thermal stage's
+// ambient terms leave it), and x0 the first sample less it. Otherwise a zero of a fifth of the
+// stroke starts as a displacement from rest whose relaxation the scale search chases to a fast
+// pole. The line's own slope, not the start's θ4/θ3: a start biased in its ratios (a seed from
+// the paper law) would put its bias into the zero.
+void start_displacement_zero(std::span<const WindowSample> window, const FitSettings& settings,
+                             ParamVector& p);
+
 // The thermal block's slots (θ5, θ6 unless known, T̄0) and its passes (T̄ alone: the thermal block
 // does not see x).
 FreeMask thermal_slots(const std::array<bool, kThetaSize>& known);

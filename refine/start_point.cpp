@@ -1,6 +1,7 @@
 // The window's check and the fit's start (refine/stages.hpp).
 #include <Eigen/Cholesky>
 #include <cmath>
+#include <limits>
 
 #include "refine/stages.hpp"
 
@@ -26,16 +27,38 @@ Eigen::Vector2d thermal_from_data(std::span<const WindowSample> w) {
           th.allFinite() && th[1] > 0.0 ? th[1] : 1.0};
 }
 
-// A mechanical shape with poles at −1 and −1000 rad/s at scale 1, no temperature-dependent
-// damping, and the static gain x ≈ −(θ4/θ3)·T̄ fitted to the data; the scale search places it.
-Eigen::Vector4d default_mechanical_shape(std::span<const WindowSample> w) {
+// x ≈ zero − gain·(T̄ − offset − drift·(t − t0)) by least squares over the window (the T̄
+// nuisance terms from p; 0 before the thermal stage). NaN where T̄ does not vary.
+struct StaticLine {
+  double zero = 0.0, gain = 0.0;
+};
+StaticLine static_line(std::span<const WindowSample> w, const ParamVector& p) {
+  const auto model_tbar = [&](const WindowSample& s) {
+    return s.tbar - p[kAmbientOffsetSlot] - p[kAmbientDriftSlot] * (s.t - w.front().t);
+  };
+  double mean_x = 0.0, mean_t = 0.0;
+  for (const WindowSample& s : w) {
+    mean_x += s.x;
+    mean_t += model_tbar(s);
+  }
+  mean_x /= static_cast<double>(w.size());
+  mean_t /= static_cast<double>(w.size());
   double xt = 0.0, tt = 0.0;
   for (const WindowSample& s : w) {
-    xt += s.x * s.tbar;
-    tt += s.tbar * s.tbar;
+    xt += (s.x - mean_x) * (model_tbar(s) - mean_t);
+    tt += (model_tbar(s) - mean_t) * (model_tbar(s) - mean_t);
   }
-  const double gain = tt > 0.0 ? -xt / tt : 0.0;
-  return {1001.0, 0.0, 1000.0, gain * 1000.0};
+  const double gain = tt > 0.0 ? -xt / tt : std::numeric_limits<double>::quiet_NaN();
+  return {mean_x + gain * mean_t, gain};
+}
+
+// A mechanical shape with poles at −1 and −1000 rad/s at scale 1, no temperature-dependent
+// damping, and the static gain of the window's static line (with its constant: through the
+// origin, a displacement zero of a fifth of the stroke bent the gain so far that the fit ended at
+// a fast pole); the scale search places it.
+Eigen::Vector4d default_mechanical_shape(std::span<const WindowSample> w) {
+  const double gain = static_line(w, ParamVector::Zero()).gain;
+  return {1001.0, 0.0, 1000.0, std::isfinite(gain) ? gain * 1000.0 : 0.0};
 }
 
 }  // namespace
@@ -71,6 +94,15 @@ ParamVector start_point(std::span<const WindowSample> window, const Vector6& the
       if (!known[j]) p[j] = shape[j];
   }
   return p;
+}
+
+void start_displacement_zero(std::span<const WindowSample> window, const FitSettings& settings,
+                             ParamVector& p) {
+  if (settings.nuisance.x_zero.fixed) return;
+  const StaticLine line = static_line(window, p);
+  if (!std::isfinite(line.zero)) return;
+  p[kXZeroSlot] = line.zero;
+  p[kX0] = window.front().x - line.zero;
 }
 
 }  // namespace scp::refine

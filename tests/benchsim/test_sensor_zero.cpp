@@ -10,6 +10,7 @@
 
 #include "refine/fit.hpp"
 #include "tests/benchsim/bench_window.hpp"
+#include "tests/benchsim/light_stiff_bench.hpp"
 #include "tools/benchsim/bench_file.hpp"
 
 namespace scp::tools::benchsim {
@@ -51,6 +52,29 @@ TEST(SensorZero, AFiveMillimetreZeroAtN3IsEstimatedBesideTheta) {
     EXPECT_LT(std::abs(r.nuisance.x_zero.value - kZero), 4.0 * r.nuisance.x_zero.sigma)
         << "seed " << seed;
   }
+}
+
+// Light-stiff (5 mm of stroke) with a zero of 1 mm, from a start whose mechanical θ is unusable
+// (negative damping, as the paper law gave on such a file: its model has no zero), so that the fit
+// starts from its default shape. That shape's static gain was fitted through the origin, and the
+// zero started at 0: both bent by the offset, the fit ended at a fast pole (θ1 ×100, `model
+// unstable`) for a zero of 0.2 mm already. Now the static line's constant starts the zero.
+TEST(SensorZero, AZeroOfAFifthOfTheStrokeFromAnUnusableStart) {
+  BenchFile f = test::light_stiff(300.0);
+  f.sim.x_zero = 1e-3;
+  f.timing = VoltageTiming::dac_before;
+  refine::FitSettings s;
+  s.nuisance.x_zero.fixed = false;
+  s.nuisance.ambient_offset.fixed = false;
+  s.nuisance.ambient_drift.fixed = false;
+  s.nuisance.sensor_lag.fixed = false;
+  const refine::Vector6 truth = test::theta_of(f);
+  refine::Vector6 start = truth;
+  start[0] = -7.0;
+  const refine::FitResult r = refine::fit(test::window_of(f), start, s);
+  ASSERT_TRUE(r.converged) << r.message;
+  EXPECT_LT(((r.theta - truth).array() / truth.array()).abs().maxCoeff(), 1e-6);
+  EXPECT_NEAR(r.nuisance.x_zero.value, 1e-3, 1e-9);
 }
 
 }  // namespace

@@ -6,39 +6,17 @@
 
 #include <cmath>
 #include <cstdio>
-#include <numbers>
 #include <vector>
 
 #include "refine/fit.hpp"
 #include "refine/voltage_timing.hpp"
 #include "tests/benchsim/bench_window.hpp"
+#include "tests/benchsim/light_stiff_bench.hpp"
 #include "tests/benchsim/switching_excitation.hpp"
 #include "tools/benchsim/bench_file.hpp"
 
 namespace scp::tools::benchsim {
 namespace {
-
-// config/actuators/light-stiff.yaml: its plant and its excitation.
-BenchFile light_stiff(double duration_s) {
-  BenchFile f = default_bench_file();
-  f.sim.plant = {.m = 0.02,
-                 .R = 4.0,
-                 .Cth = 0.125,
-                 .lambda = 0.025,
-                 .b = 2.0,
-                 .k = 400.0,
-                 .alpha1 = 0.01,
-                 .alpha2 = 0.02};
-  excitation::ExcitationSettings e;
-  e.v_max = 3.2;
-  e.offset = 1.16;
-  e.sines = {{0.6, 0.006, -std::numbers::pi / 2.0}};
-  e.prbs.amplitude = 1.2;
-  e.prbs.bit_period_s = 1.0;
-  f.excitation = e;
-  f.duration_s = duration_s;
-  return f;
-}
 
 std::size_t count(const std::vector<bool>& flags) {
   std::size_t n = 0;
@@ -68,7 +46,7 @@ TEST(VoltageSwitches, FoundAtEachBitAndNowhereElse) {
   sines.sim.noise_voltage = 1e-3;
   EXPECT_EQ(count(refine::find_voltage_switches(test::window_of(sines))), 0u);
 
-  const std::vector<refine::WindowSample> w = test::window_of(light_stiff(60.0));
+  const std::vector<refine::WindowSample> w = test::window_of(test::light_stiff(60.0));
   const std::vector<bool> found = refine::find_voltage_switches(w);
   std::size_t bit_changes = 0;
   for (std::size_t k = 1; k < w.size(); ++k) {
@@ -84,7 +62,7 @@ TEST(VoltageSwitches, FoundAtEachBitAndNowhereElse) {
 // (refine.voltage_shape: linear) puts (A² + AB + B²)/3 over every switch's interval and misses by
 // orders of magnitude more.
 TEST(VoltageSwitches, APrbsOnSampleInstantsIsFitToOneInAMillion) {
-  const BenchFile f = light_stiff(300.0);
+  const BenchFile f = test::light_stiff(300.0);
   const std::vector<refine::WindowSample> w = test::window_of(f);
   const refine::Vector6 truth = test::theta_of(f);
   const refine::FitResult r = refine::fit(w, truth * 1.1, foh(refine::VoltageShape::smooth));
