@@ -124,7 +124,7 @@ FitResult fit_staged(std::span<const WindowSample> window, const Vector6& theta_
   if (stop == StopReason::none) stop = hold_undetermined_lag(ctx, state);
   if (stop == StopReason::none) stop = fit_input_delay(ctx, state);
   if (stop == StopReason::none) {
-    start_displacement_zero(window, settings, state.p);
+    if (!usable_mechanical_start(theta_start)) start_displacement_zero(window, settings, state.p);
     start_with_positive_damping(ctx, state);
     if (settings.search_scale) stop = search_scale(ctx, state);
   }

@@ -23,12 +23,17 @@ StopReason check_window(std::span<const WindowSample> window);
 ParamVector start_point(std::span<const WindowSample> window, const Vector6& theta_start,
                         const std::array<bool, kThetaSize>& known);
 
-// With the displacement sensor's zero estimated, after the thermal stage: the zero as the
-// constant of the static line x ≈ zero − g·T̄ fitted to the window (T̄ as the thermal stage's
-// ambient terms leave it), and x0 the first sample less it. Otherwise a zero of a fifth of the
-// stroke starts as a displacement from rest whose relaxation the scale search chases to a fast
-// pole. The line's own slope, not the start's θ4/θ3: a start biased in its ratios (a seed from
-// the paper law) would put its bias into the zero.
+// Whether θ_start's mechanical part can start the fit (finite, θ1 and θ3 positive); otherwise
+// start_point takes a default shape whose static gain is the window's static line's.
+bool usable_mechanical_start(const Vector6& theta);
+
+// With the displacement sensor's zero estimated and the default shape started (after the
+// thermal stage): the zero as the constant of that static line x ≈ zero − g·T̄ (T̄ as the thermal
+// stage's ambient terms leave it), and x0 the first sample less it, so that the shape's gain and
+// zero come from the same line. Otherwise a zero of a fifth of the stroke starts as a
+// displacement from rest whose relaxation the scale search chased to a fast pole. From a usable
+// θ_start the zero starts at 0, x0 at the first sample: the search, started there with the line's
+// zero, lost a paper N3 seed (16) that it finds from 0.
 void start_displacement_zero(std::span<const WindowSample> window, const FitSettings& settings,
                              ParamVector& p);
 

@@ -86,14 +86,17 @@ ParamVector start_point(std::span<const WindowSample> window, const Vector6& the
     for (std::size_t j = 0; j < kThermalTheta.size(); ++j)
       if (!known[kThermalTheta[j]]) p[kThermalTheta[j]] = from_data[static_cast<Eigen::Index>(j)];
   }
-  const bool mechanical_usable =
-      p.head<kMechanicalSize>().allFinite() && p[kDamping] > 0.0 && p[kStiffness] > 0.0;
-  if (!mechanical_usable) {
+  if (!usable_mechanical_start(theta_start)) {
     const Eigen::Vector4d shape = default_mechanical_shape(window);
     for (int j = 0; j < kMechanicalSize; ++j)
       if (!known[j]) p[j] = shape[j];
   }
   return p;
+}
+
+bool usable_mechanical_start(const Vector6& theta) {
+  return theta.head<kMechanicalSize>().allFinite() && theta[kDamping] > 0.0 &&
+         theta[kStiffness] > 0.0;
 }
 
 void start_displacement_zero(std::span<const WindowSample> window, const FitSettings& settings,

@@ -77,5 +77,32 @@ TEST(SensorZero, AZeroOfAFifthOfTheStrokeFromAnUnusableStart) {
   EXPECT_NEAR(r.nuisance.x_zero.value, 1e-3, 1e-9);
 }
 
+// The paper's actuator with a 1 mm zero at N3 (scripts/deviations' x_zero cell, seed 16) from
+// the paper law's θ on that file (usable: positive, and far off), so that the zero starts at 0
+// and x0 at the first sample. Started from the static line's zero instead, the scale search
+// ended at a fast pole (`model unstable`, θ1 −98 %).
+TEST(SensorZero, AUsableStartKeepsTheZeroAtZero) {
+  BenchFile f = default_bench_file();
+  apply_noise_level("N3", f.sim);
+  f.sim.x_zero = 1e-3;
+  f.sim.seed = 16;
+  refine::FitSettings s;
+  s.voltage_hold = estimator::VoltageHold::foh;
+  s.voltage_shape = refine::VoltageShape::smooth;
+  s.nuisance.x_zero.fixed = false;
+  s.nuisance.ambient_offset.fixed = false;
+  s.nuisance.ambient_drift.fixed = false;
+  s.nuisance.sensor_lag.fixed = false;
+  const refine::Vector6 truth = test::theta_of(f);
+  refine::Vector6 paper_law;
+  paper_law << 1.3475535616526675, -0.04963411895647625, 0.049038472435220276,
+      1.925832136689639e-06, 0.059373158346218056, 1.0994142938199971;
+  const refine::FitResult r = refine::fit(test::window_of(f), paper_law, s);
+  ASSERT_TRUE(r.converged) << r.message;
+  for (int i = 0; i < 6; ++i)
+    EXPECT_LT(std::abs(r.theta[i] - truth[i]), 4.0 * r.sigma[i]) << "θ" << i + 1;
+  EXPECT_LT(std::abs(r.nuisance.x_zero.value - 1e-3), 4.0 * r.nuisance.x_zero.sigma);
+}
+
 }  // namespace
 }  // namespace scp::tools::benchsim
