@@ -16,7 +16,15 @@
 namespace scp::tools::benchsim {
 namespace {
 
-constexpr double kZero = 5e-3;  // m: a clamp re-seated, a sensor re-mounted
+constexpr double kZero = 5e-3;
+
+// The daemon's defaults: every nuisance term estimated.
+void free_every_nuisance_term(refine::FitSettings& s) {
+  s.nuisance.x_zero.fixed = false;
+  s.nuisance.ambient_offset.fixed = false;
+  s.nuisance.ambient_drift.fixed = false;
+  s.nuisance.sensor_lag.fixed = false;
+}  // m: a clamp re-seated, a sensor re-mounted
 
 TEST(SensorZero, AFiveMillimetreZeroAtN3IsEstimatedBesideTheta) {
   for (const unsigned seed : {1u}) {
@@ -27,10 +35,7 @@ TEST(SensorZero, AFiveMillimetreZeroAtN3IsEstimatedBesideTheta) {
     refine::FitSettings s;  // the daemon's defaults: the nuisance terms estimated
     s.voltage_hold = estimator::VoltageHold::foh;
     s.voltage_shape = refine::VoltageShape::smooth;
-    s.nuisance.x_zero.fixed = false;
-    s.nuisance.ambient_offset.fixed = false;
-    s.nuisance.ambient_drift.fixed = false;
-    s.nuisance.sensor_lag.fixed = false;
+    free_every_nuisance_term(s);
     const refine::Vector6 truth = test::theta_of(f);
     // A start off in its ratios, as a seed from a biased estimate can be (with the zero held in
     // the scale search, this start stalled at a fast pole).
@@ -64,10 +69,7 @@ TEST(SensorZero, AZeroOfAFifthOfTheStrokeFromAnUnusableStart) {
   f.sim.x_zero = 1e-3;
   f.timing = VoltageTiming::dac_before;
   refine::FitSettings s;
-  s.nuisance.x_zero.fixed = false;
-  s.nuisance.ambient_offset.fixed = false;
-  s.nuisance.ambient_drift.fixed = false;
-  s.nuisance.sensor_lag.fixed = false;
+  free_every_nuisance_term(s);
   const refine::Vector6 truth = test::theta_of(f);
   refine::Vector6 start = truth;
   start[0] = -7.0;
@@ -89,10 +91,7 @@ TEST(SensorZero, AUsableStartKeepsTheZeroAtZero) {
   refine::FitSettings s;
   s.voltage_hold = estimator::VoltageHold::foh;
   s.voltage_shape = refine::VoltageShape::smooth;
-  s.nuisance.x_zero.fixed = false;
-  s.nuisance.ambient_offset.fixed = false;
-  s.nuisance.ambient_drift.fixed = false;
-  s.nuisance.sensor_lag.fixed = false;
+  free_every_nuisance_term(s);
   const refine::Vector6 truth = test::theta_of(f);
   refine::Vector6 paper_law;
   paper_law << 1.3475535616526675, -0.04963411895647625, 0.049038472435220276,

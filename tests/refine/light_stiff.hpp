@@ -25,14 +25,18 @@ inline drivers::sim::PlantParams light_stiff() {
   return p;
 }
 
-inline std::function<double(double)> light_stiff_voltage() {
+inline excitation::ExcitationSettings light_stiff_excitation() {
   excitation::ExcitationSettings s;
   s.v_max = 3.2;
   s.offset = 1.16;
   s.sines.push_back({0.6, 0.006, -1.5707963267948966});
   s.prbs.amplitude = 1.2;
   s.prbs.bit_period_s = 1.0;
-  auto ex = std::make_shared<excitation::Excitation>(s);
+  return s;
+}
+
+inline std::function<double(double)> light_stiff_voltage() {
+  auto ex = std::make_shared<excitation::Excitation>(light_stiff_excitation());
   return [ex](double t) { return ex->voltage(t); };
 }
 
