@@ -330,7 +330,8 @@ void declare_refine(Binder& refine, RefineSettings& out) {
                     "rest; the solver streams its sensitivities)");
   refine.number("interval_s", out.interval_s, 10.0, 0.01, 3600.0,
                 "a fit every this much loop time once min_window_s of data are there (after a "
-                "fit whose model the window rejects, when the window has doubled or renewed); "
+                "fit whose model the window rejects, when the window is full, or 4x as long if it "
+                "was shorter than the thermal time constant, or once full renewed); "
                 "the refined estimate stops being `best` when its fit is older than 3 intervals");
   refine.number("min_window_s", out.min_window_s, 30.0, 0.01, 3600.0,
                 "no fit on less data than this (a gap starts a new window); at most window_s");

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <limits>
@@ -367,18 +368,43 @@ TEST_F(RefinerTest, AWarmStartTheFitDeclinesIsCountedAsCold) {
   EXPECT_EQ(r.view().warm_fits, 0U);
 }
 
-// A window the model did not explain is refitted when it has doubled, or once full renewed, not
-// every interval; the first fit that does not stall restores the interval.
-TEST_F(RefinerTest, AfterAFitThatStalledTheNextWaitsForTheWindowToDoubleOrRenew) {
+// A window the model did not explain is refitted when it has more data, not every interval: a
+// growing window that covered the thermal time constant 1/θ5 when full, a shorter one at four
+// times its length, a full one when it has renewed. The first fit that does not stall restores
+// the interval.
+TEST_F(RefinerTest, AfterAFitThatStalledTheNextWaitsForMoreData) {
+  settings_.window_s = 100.0;
   stall_ = true;
+  // θ5 from the paper law's estimate, else (not positive there) from the fit's.
+  const auto fit_ends = [&](double paper_theta5, double fitted_theta5) {
+    calls_.clear();
+    paper_.theta_hat[4] = paper_theta5;
+    fitted_theta_[4] = fitted_theta5;
+    Refiner r = make();
+    feed(r, 0.0, 250.0);
+    std::vector<double> ends;
+    for (const Call& c : calls_) ends.push_back(std::round(c.t_end * 100.0) / 100.0);
+    return ends;
+  };
+  const std::vector<double> fourfold{3.0, 12.0, 48.0, 100.0, 200.0};
+  // 1/θ5 = 100 s: each growing window was shorter (3, 12, 48 s), then full, then renewed.
+  EXPECT_EQ(fit_ends(0.01, 50.0), fourfold);
+  // 1/θ5 = 4 s: the 3 s window was shorter, the 12 s one covered it.
+  EXPECT_EQ(fit_ends(0.25, 50.0), (std::vector<double>{3.0, 12.0, 100.0, 200.0}));
+  // No paper θ5: the fit's (here 1/θ5 = 100 s); neither positive: fourfold.
+  EXPECT_EQ(fit_ends(0.0, 0.01), fourfold);
+  EXPECT_EQ(fit_ends(0.0, -1.0), fourfold);
+  paper_.theta_hat[4] = 0.01;
+  calls_.clear();
+  settings_.window_s = 10.0;
   Refiner r = make();
   feed(r, 0.0, 9.0);
-  ASSERT_EQ(calls_.size(), 2U);  // at 3 s (span 3: next at 6), at 6 s (span 6: next at 12)
+  ASSERT_EQ(calls_.size(), 1U);  // at 3 s (span 3: fourfold is beyond full, so at 10 s)
   EXPECT_NEAR(calls_[0].t_end, 3.0, 1e-9);
-  EXPECT_NEAR(calls_[1].t_end, 6.0, 1e-9);
   stall_ = false;
   feed(r, 9.01, 14.0);
-  ASSERT_EQ(calls_.size(), 4U);  // at 12 s, then every interval again: 14 s
+  ASSERT_EQ(calls_.size(), 4U);  // at 10 s, then every interval again: 12 s, 14 s
+  EXPECT_NEAR(calls_[1].t_end, 10.0, 1e-9);
   EXPECT_NEAR(calls_[2].t_end, 12.0, 1e-9);
   EXPECT_NEAR(calls_[3].t_end, 14.0, 1e-9);
   stall_ = true;
@@ -391,7 +417,7 @@ TEST_F(RefinerTest, AfterAFitThatStalledTheNextWaitsForTheWindowToDoubleOrRenew)
 // The same for every way a fit finds a window its model cannot explain: it spends its passes' or
 // sub-steps' budget, or converges to a solution the validation rejects. An unusable window or a
 // cancelled fit is not the model's failure: the next fit comes an interval later.
-TEST_F(RefinerTest, AfterAFitThatFoundTheModelRejectedTheNextWaitsForTheWindowToDouble) {
+TEST_F(RefinerTest, AfterAFitThatFoundTheModelRejectedTheNextWaitsForTheWindowToFill) {
   using scp::refine::StopReason;
   struct Case {
     StopReason stop;
@@ -412,8 +438,8 @@ TEST_F(RefinerTest, AfterAFitThatFoundTheModelRejectedTheNextWaitsForTheWindowTo
     feed(r, 0.0, 9.0);
     const char* what = c.structure ? "structure verdict" : scp::refine::to_text(c.stop);
     if (c.backs_off) {
-      ASSERT_EQ(calls_.size(), 2U) << what;  // at 3 s and 6 s, as after a stall
-      EXPECT_NEAR(calls_[1].t_end, 6.0, 1e-9) << what;
+      ASSERT_EQ(calls_.size(), 1U) << what;  // at 3 s, the next at 10 s, as after a stall
+      EXPECT_NEAR(calls_[0].t_end, 3.0, 1e-9) << what;
     } else {
       EXPECT_EQ(calls_.size(), 4U) << what;  // at 3 s, then every interval (2 s) to 9 s
     }

@@ -182,6 +182,20 @@ std::size_t Refiner::drain(HandOffRing& ring) noexcept {
   return n;
 }
 
+// After a rejection a full window waits to renew. A growing one that covered the thermal time
+// constant 1/θ5 (the slowest the model has) waits to be full: its data did not fit, and each
+// fit there is a full fit that stalls or crawls (at twice the length each time, 30, 60, 120,
+// 240 s and the full window, a replay of a file the model does not explain cost 4x a clean
+// one's: docs/numerics.md, "A fit the model cannot explain"). A shorter one may have failed for
+// want of data (the first seconds of a run): it is retried at kRejectedGrowth times its length.
+double Refiner::rejected_wait(double span_s, double theta5) const noexcept {
+  constexpr double kRejectedGrowth = 4.0;
+  const double to_full = settings_.window_s - span_s;
+  if (!(to_full > tolerance_s_)) return settings_.window_s;
+  const bool covered_thermal = theta5 > 0.0 && span_s * theta5 >= 1.0;
+  return covered_thermal ? to_full : std::min((kRejectedGrowth - 1.0) * span_s, to_full);
+}
+
 bool Refiner::window_ready() const noexcept {
   return window_.size() >= 3 && window_.span_s() + tolerance_s_ >= settings_.min_window_s;
 }
@@ -319,8 +333,11 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   last_fit_t_end_ = window_.empty() ? now_t : window_.back().t;
   // A window the model cannot explain: refitting one that is mostly the same data would end the
   // same way, at the cost of a whole budget (hundreds of passes) each interval. The next attempt
-  // waits until the window has doubled, or once full, renewed.
-  rejected_wait_s_ = model_rejected(r) ? std::min(r.t_end - r.t_begin, settings_.window_s) : 0.0;
+  // waits for more data (rejected_wait).
+  // The thermal time constant from the paper law, which runs on whatever the fit makes of the
+  // window (a fit that went unstable may have taken θ5 anywhere).
+  const double theta5 = usable(paper) && paper.theta_hat[4] > 0.0 ? paper.theta_hat[4] : r.theta[4];
+  rejected_wait_s_ = model_rejected(r) ? rejected_wait(r.t_end - r.t_begin, theta5) : 0.0;
   // The next fit's warm start, whether or not this one converged (refine::fit declines one that
   // did not, and says so). None on a link whose timing the fit estimates: a warm refit would hold
   // the voltage's delay at the previous fit's and has not been shown sound beside the jitter and

@@ -92,6 +92,9 @@ class Refiner {
 
  private:
   bool window_ready() const noexcept;
+  // After a fit whose model a window of span_s rejected, θ5 = λ/Cth its fitted cooling rate: loop
+  // time until the window is full (it covered 1/θ5) or has grown fourfold, or once full renewed.
+  double rejected_wait(double span_s, double theta5) const noexcept;
   void validate(scp::refine::FitResult& r, const PaperEstimate& paper,
                 std::span<const scp::refine::WindowSample> prepared);
   scp::refine::FitSettings make_fit_settings() const;
