@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "refine/heater_power.hpp"
+#include "refine/interval_averaging.hpp"
 #include "refine/stages.hpp"
 #include "refine/voltage_timing.hpp"
 #include "refine/warm_start.hpp"
@@ -149,6 +150,37 @@ FitResult fit_prepared(std::span<const WindowSample> window, const Vector6& thet
                                             : fit_staged(window, theta_start, settings);
 }
 
+// The staged fit of the window read under `interval`, its switches at `switches`.
+FitResult fit_under(std::span<const WindowSample> window, const Vector6& theta_start,
+                    const FitSettings& settings, VoltageInterval interval,
+                    const SwitchPhase& switches) {
+  std::vector<WindowSample> storage;
+  FitResult result = fit_prepared(prepare_window(window, settings.voltage_hold, interval, storage,
+                                                 settings.voltage_shape, switches.phase),
+                                  theta_start, settings);
+  result.voltage_interval = interval;
+  result.voltage_switches = switches;
+  return result;
+}
+
+// An interval the window could not tell: the fit under the other one too. θ1..θ4 either move with
+// it (the interval stays undetermined) or not (equivalent); every σ takes the spread.
+void compare_intervals(std::span<const WindowSample> window, const Vector6& theta_start,
+                       const FitSettings& settings, const IntervalChoice& choice,
+                       FitResult& result) {
+  const VoltageInterval other =
+      choice.interval == VoltageInterval::after ? VoltageInterval::before : VoltageInterval::after;
+  const FitResult alt = fit_under(window, theta_start, settings, other, choice.other_switches);
+  result.iterations += alt.iterations;
+  result.evaluations += alt.evaluations;
+  if (!alt.converged) return;
+  IntervalEvidence& e = result.voltage_interval_evidence;
+  e.compared = true;
+  e.theta_shift_sigma = mechanical_shift_sigma(result, alt, settings.known);
+  e.equivalent = e.theta_shift_sigma <= kEquivalentThetaShift;
+  add_interval_covariance(result, interval_covariance(result, alt, e.statistic, settings.known));
+}
+
 // The full staged fit (without FitSettings::warm).
 FitResult fit_cold(std::span<const WindowSample> window, const Vector6& theta_start,
                    const FitSettings& settings) {
@@ -159,14 +191,10 @@ FitResult fit_cold(std::span<const WindowSample> window, const Vector6& theta_st
     choice.interval = settings.voltage_interval;
     choice.switches = choose_switch_phase(window, choice.interval, theta_start, settings);
   }
-  std::vector<WindowSample> storage;
-  FitResult result =
-      fit_prepared(prepare_window(window, settings.voltage_hold, choice.interval, storage,
-                                  settings.voltage_shape, choice.switches.phase),
-                   theta_start, settings);
-  result.voltage_interval = choice.interval;
+  FitResult result = fit_under(window, theta_start, settings, choice.interval, choice.switches);
   result.voltage_interval_evidence = choice.evidence;
-  result.voltage_switches = choice.switches;
+  if (choice.evidence.estimated && !choice.evidence.determined && result.converged)
+    compare_intervals(window, theta_start, settings, choice, result);
   return result;
 }
 

@@ -37,12 +37,22 @@ const char* to_text(VoltageInterval interval) noexcept;  // kVoltageIntervalName
 // quantile at 0.99 (the other interval then lies outside the likelihood-ratio confidence set of
 // the voltage's one-period shift). Otherwise the window cannot tell the two, and θ1..θ4, whose
 // common scale is a sub-millisecond lag between heating and motion, are only as right as the guess.
+// When it is not, the fit is made under both intervals (refine/fit.cpp, compare_intervals):
+// `theta_shift_sigma` is the largest |θ_i(before) − θ_i(after)| / σ_i over the free θ1..θ4 (the
+// parameters a one-period shift can move by tens of per cent), and the two are `equivalent` for
+// them when it is at most kEquivalentThetaShift. Every θ's σ then also carries the spread between
+// the two fits (FitResult::interval_covariance).
 struct IntervalEvidence {
   bool estimated = false;  // chosen by the data (else declared, and determined by declaration)
   bool determined = true;
   double statistic = 0.0;
   double threshold = 0.0;
+  bool compared = false;  // both intervals fitted (undetermined, and the chosen fit converged)
+  bool equivalent = false;
+  double theta_shift_sigma = 0.0;
 };
+// A bias of a quarter σ costs an estimate 3 % of its RMS error and its 2σ interval 1 % coverage.
+inline constexpr double kEquivalentThetaShift = 0.25;
 
 // A smooth voltage's switches (refine/voltage_timing.hpp, hold_voltage_switches): how many a
 // window has and where in their intervals the fit put them (0: just after the previous sample, 1:

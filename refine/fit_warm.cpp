@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <vector>
 
+#include "refine/interval_averaging.hpp"
 #include "refine/lag_hold.hpp"
 #include "refine/model_simulator.hpp"
 #include "refine/stages.hpp"
@@ -126,6 +127,7 @@ WarmStart warm_start(const FitResult& fit, const FitSettings& settings, const Wi
   w.input_delay_sigma_inflation = fit.input_delay_sigma_inflation;
   w.voltage_interval = fit.voltage_interval;
   w.voltage_interval_evidence = fit.voltage_interval_evidence;
+  w.interval_covariance = fit.interval_covariance;
   w.voltage_switches = fit.voltage_switches;
   w.extensions = fit.extensions;
   w.hac_lags = fit.hac_lags;
@@ -212,6 +214,8 @@ FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
   if (!result.validated && !result.converged) return declined(result, WarmFallback::not_converged);
   if (!result.converged) return declined(result, WarmFallback::verdict_failed);
   carry_choice(warm.extensions, settings.extensions, result.extensions);
+  // The choice's doubt, measured when the full fit compared the two intervals.
+  add_interval_covariance(result, warm.interval_covariance);
   result.warm = true;
   result.warm_fallback = WarmFallback::none;
   return result;

@@ -173,7 +173,9 @@ IntervalChoice weigh_voltage_interval(std::span<const WindowSample> window,
     free_fit[i] = thermal_criterion(prepared, theta_start, settings);
   }
   IntervalChoice choice = pick_interval(held_fit, free_fit, lag_free, window);
-  choice.switches = switches[choice.interval == VoltageInterval::after ? 1 : 0];
+  const bool after = choice.interval == VoltageInterval::after;
+  choice.switches = switches[after ? 1 : 0];
+  choice.other_switches = switches[after ? 0 : 1];
   return choice;
 }
 

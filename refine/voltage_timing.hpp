@@ -78,7 +78,8 @@ VoltageInterval choose_voltage_interval(std::span<const WindowSample> window,
 struct IntervalChoice {
   VoltageInterval interval = VoltageInterval::before;
   IntervalEvidence evidence;
-  SwitchPhase switches;  // of a foh smooth voltage's switches under `interval`
+  SwitchPhase switches;        // of a foh smooth voltage's switches under `interval`
+  SwitchPhase other_switches;  // the same under the other interval
 };
 IntervalChoice weigh_voltage_interval(std::span<const WindowSample> window,
                                       const Vector6& theta_start, const FitSettings& settings);

@@ -48,8 +48,9 @@ struct WarmStart {
   bool input_delay_estimated = false;
   double input_delay_s = 0.0, input_delay_sigma_s = 0.0, input_delay_sigma_inflation = 1.0;
   VoltageInterval voltage_interval = VoltageInterval::before;
-  IntervalEvidence voltage_interval_evidence;  // the warm refit keeps the choice, and its doubt
-  SwitchPhase voltage_switches;                // and the switches' phase
+  IntervalEvidence voltage_interval_evidence;     // the warm refit keeps the choice, and its doubt
+  Matrix6 interval_covariance = Matrix6::Zero();  // and the doubt's share of the covariance
+  SwitchPhase voltage_switches;                   // and the switches' phase
   int hac_lags = 0;  // the previous fit's Newey–West lags (FitResult::hac_lags)
   // The extensions as the fit left them: their coefficients and, for `auto`, which it kept (the
   // warm refit keeps the same model; the choice is made again by the next full fit).

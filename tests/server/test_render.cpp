@@ -17,7 +17,7 @@ using nlohmann::json;
 
 TEST(Render, VersionErrorAckWatchAreExactLines) {
   EXPECT_EQ(render_version("1.2.3"),
-            "{\"class\":\"VERSION\",\"proto_major\":1,\"proto_minor\":11,\"release\":\"1.2.3\"}\n");
+            "{\"class\":\"VERSION\",\"proto_major\":1,\"proto_minor\":12,\"release\":\"1.2.3\"}\n");
   EXPECT_EQ(render_error("bad \"x\""), "{\"class\":\"ERROR\",\"message\":\"bad \\\"x\\\"\"}\n");
   EXPECT_EQ(render_ack("reset", true, "done"),
             "{\"class\":\"ACK\",\"message\":\"done\",\"ok\":true,\"request\":\"reset\"}\n");
@@ -318,7 +318,8 @@ TEST(Render, BestNamesOnlyAnEstimateWhoseValidationPassed) {
 
 // Issue 28: a voltage interval the fit estimated but the window could not tell is published as
 // `undetermined` (with the criterion's evidence), and `best` keeps off the refined estimate (its
-// θ1..θ4 are a guess's) with the remedy in the reason; one the data decided changes nothing.
+// θ1..θ4 are a guess's) with the remedy in the reason, unless the fit under the other interval
+// left θ1..θ4 where they were (equivalent); one the data decided changes nothing.
 TEST(Render, AnUndeterminedVoltageIntervalIsSaidAndNotRecommended) {
   const PublishedState s = test::sample_state();
   refine::RefinedView r = sample_refined();
@@ -343,6 +344,25 @@ TEST(Render, AnUndeterminedVoltageIntervalIsSaidAndNotRecommended) {
   EXPECT_NE(reason.find("V_since"), std::string::npos) << reason;
   const json status = json::parse(render_status(s, ServerInfo{"0.1.0", "sim", "", ""}, &r));
   EXPECT_EQ(status["refine"]["voltage_interval"], "undetermined");
+
+  // Fitted both ways, θ1..θ4 moved by more than a quarter σ: still undetermined, the shift said.
+  r.voltage_interval_evidence.compared = true;
+  r.voltage_interval_evidence.theta_shift_sigma = 3.0;
+  j = json::parse(render_estimate(s.estimate, &r, 12.5));
+  EXPECT_EQ(j["refined"]["voltage_interval"], "undetermined");
+  EXPECT_EQ(j["refined"]["voltage_interval_test"]["equivalent"], false);
+  EXPECT_DOUBLE_EQ(j["refined"]["voltage_interval_test"]["theta_shift_sigma"].get<double>(), 3.0);
+  EXPECT_EQ(j["best"], "paper");
+  // Equivalent: the fitted interval is named, the test says it was not determined, and the
+  // refined estimate may be best.
+  r.voltage_interval_evidence.equivalent = true;
+  r.voltage_interval_evidence.theta_shift_sigma = 0.1;
+  j = json::parse(render_estimate(s.estimate, &r, 12.5));
+  EXPECT_EQ(j["refined"]["voltage_interval"], "after");
+  EXPECT_EQ(j["refined"]["voltage_interval_test"]["determined"], false);
+  EXPECT_EQ(j["refined"]["voltage_interval_test"]["equivalent"], true);
+  EXPECT_EQ(j["best"], "refined");
+  r.voltage_interval_evidence.equivalent = false;
 
   r.paper_validation.mechanical.verdict = scp::refine::Verdict::kStructure;
   EXPECT_EQ(json::parse(render_estimate(s.estimate, &r, 12.5))["best"], "none");

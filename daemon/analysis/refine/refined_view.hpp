@@ -94,7 +94,8 @@ struct RefinedView {
 // Whether the latest fit estimated the voltage's interval and the window could not tell it
 // (refine::IntervalEvidence): its θ1..θ4 are then a guess's.
 inline bool interval_undetermined(const RefinedView& v) noexcept {
-  return v.voltage_interval_evidence.estimated && !v.voltage_interval_evidence.determined;
+  const scp::refine::IntervalEvidence& e = v.voltage_interval_evidence;
+  return e.estimated && !e.determined && !e.equivalent;
 }
 
 // Whether the refined fit is current at loop time `now_t`: its latest fit converged, is at most 3

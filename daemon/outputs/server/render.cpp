@@ -169,9 +169,9 @@ void put_bench_terms(json& o, const refine::RefinedView& r) {
   }
 }
 
-// "voltage_interval" (before, after, or undetermined where the data could not tell), a smooth
-// voltage's "voltage_switches" where it has any, and, when the fit estimated the interval,
-// "voltage_interval_test": what it fitted with and the criterion's evidence.
+// "voltage_interval" (before, after, or undetermined where the data could not tell and θ depends
+// on it), a smooth voltage's "voltage_switches" where it has any, and, when the fit estimated the
+// interval, "voltage_interval_test": what it fitted with and the criterion's evidence.
 void put_voltage_interval(json& o, const refine::RefinedView& r) {
   const bool undetermined = refine::interval_undetermined(r);
   o["voltage_interval"] = undetermined ? "undetermined" : scp::refine::to_text(r.voltage_interval);
@@ -180,9 +180,13 @@ void put_voltage_interval(json& o, const refine::RefinedView& r) {
                              {"phase", r.voltage_switches.phase}};
   const scp::refine::IntervalEvidence& e = r.voltage_interval_evidence;
   if (!e.estimated) return;
-  json test = {{"fitted", scp::refine::to_text(r.voltage_interval)}, {"determined", !undetermined}};
+  json test = {{"fitted", scp::refine::to_text(r.voltage_interval)}, {"determined", e.determined}};
   put_finite(test, "statistic", e.statistic);
   put_finite(test, "threshold", e.threshold);
+  if (e.compared) {
+    test["equivalent"] = e.equivalent;
+    put_finite(test, "theta_shift_sigma", e.theta_shift_sigma);
+  }
   o["voltage_interval_test"] = test;
 }
 
