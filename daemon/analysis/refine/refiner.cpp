@@ -332,10 +332,9 @@ const RefinedView& Refiner::fit(const PaperEstimate& paper, double now_t, std::i
   fitted_in_window_ = true;
   last_fit_t_end_ = window_.empty() ? now_t : window_.back().t;
   // A window the model cannot explain: refitting one that is mostly the same data would end the
-  // same way, at the cost of a whole budget (hundreds of passes) each interval. The next attempt
-  // waits for more data (rejected_wait).
-  // The thermal time constant from the paper law, which runs on whatever the fit makes of the
-  // window (a fit that went unstable may have taken θ5 anywhere).
+  // same way, at the cost of a whole budget (hundreds of passes) each interval, so the next
+  // attempt waits for more data (rejected_wait). Its θ5 is the paper law's, which runs whatever
+  // the fit makes of the window (a fit that went unstable may have taken θ5 anywhere).
   const double theta5 = usable(paper) && paper.theta_hat[4] > 0.0 ? paper.theta_hat[4] : r.theta[4];
   rejected_wait_s_ = model_rejected(r) ? rejected_wait(r.t_end - r.t_begin, theta5) : 0.0;
   // The next fit's warm start, whether or not this one converged (refine::fit declines one that
