@@ -81,8 +81,10 @@ void carry_choice(const Extensions& chosen, const ExtensionSettings& asked, Exte
 
 // The joint stage from a converged neighbour's solution: Gauss–Newton's own step first, which
 // converges in one or two where the default damping held back most of the step along the common
-// scale of θ1..θ4; each trial carries the covariance's sums (with the previous fit's
-// Newey–West lags), so that the pass that shows convergence is also the covariance's. Not where
+// scale of θ1..θ4; each pass carries the covariance's sums (with the previous fit's
+// Newey–West lags), so that the pass that shows convergence is also the covariance's, and the
+// first step is taken on the one-step rule (refine/levenberg_marquardt.hpp): the start's pass
+// and a cost-only pass at the step, where a second full pass would confirm it. Not where
 // the covariance needs more than that pass at the solution's own weights: an estimated delay's
 // error (a second pass), or the samples' timing jitter (its reference trajectory is the round's
 // start).
@@ -91,8 +93,11 @@ StageOptions neighbour_options(const WarmStart& from, const FitState& state,
   StageOptions options;
   options.initial_damping = 0.0;
   options.decrement_tolerance = kWarmDecrementTolerance;
-  if (from.hac_lags > 0 && !state.delay.ok && !settings.sample_timing_jitter)
+  if (from.hac_lags > 0 && !state.delay.ok && !settings.sample_timing_jitter) {
     options.trial_covariance = &sums;
+    // The step's decrement left is below the mismatch this rule bounds: the same convergence.
+    options.one_step_tolerance = kWarmDecrementTolerance;
+  }
   return options;
 }
 

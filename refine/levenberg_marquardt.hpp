@@ -18,6 +18,7 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <limits>
+#include <type_traits>
 
 namespace scp::refine {
 
@@ -37,6 +38,9 @@ struct LmOutcome {
   bool converged = false;
   // Ended by the rule of runs_past_resolution(): converged = false.
   bool stalled = false;
+  // Ended by the one-step rule (LmSettings::one_step_tolerance): at_z is the start's evaluation
+  // with the cost at z.
+  bool one_step = false;
   const char* message = "";
 };
 
@@ -76,12 +80,40 @@ struct LmSettings {
   double observations = 1.0;  // weighted observations in the cost (to normalize it)
   // A cost this small is the residual of rounding (noise-free data): converged.
   double cost_floor = 0.0;
+  // > 0, with a `cost_at` callback: the first step is taken on one cost-only pass when the cost
+  // falls by what the Gauss–Newton model predicted to within this fraction of the cost per
+  // observation (levenberg_marquardt()'s one-step rule).
+  double one_step_tolerance = 0.0;
 };
 
-// `evaluate(z)` returns an Evaluation; `z` is the start.
-template <class Evaluation, class Evaluate>
+// The one-step rule, for a start already beside the solution (a warm refit): from a start within
+// a few σ, one Gauss–Newton step lands where the full iteration would (Le Cam's one-step
+// estimator), and a cost-only pass at the step shows whether the linear model held: the cost fell
+// by what it predicted. A quadratic cost falls by exactly that, and the mismatch, set by the terms
+// beyond the quadratic, bounds the decrement left at the step from above (it is of higher order
+// in the step's length). The start's evaluation, with its normal matrix (and whatever sums the
+// caller's evaluation carries), then stands for the solution's, with the cost of the step.
+// `cost_at(z)` returns an Evaluation whose `finite` and `cost` (at least) are z's; the accepted
+// Evaluation takes them with its `adopt_cost(at_step)`.
+struct NoCostAt {};
+
+// Whether the first step is taken on the one-step rule; `at_step` receives its cost-only
+// evaluation.
+template <class Evaluation, class CostAt>
+bool accept_one_step(CostAt& cost_at, const Eigen::VectorXd& z_new, const Evaluation& cur,
+                     double predicted, double cost_per_observation, const LmSettings& settings,
+                     Evaluation& at_step) {
+  if (!(settings.one_step_tolerance > 0.0) || !z_new.allFinite()) return false;
+  at_step = cost_at(z_new);
+  if (at_step.stop != nullptr || !at_step.finite || !std::isfinite(at_step.cost)) return false;
+  const double actual = cur.cost - at_step.cost;
+  return std::abs(actual - predicted) <= settings.one_step_tolerance * cost_per_observation;
+}
+
+// `evaluate(z)` returns an Evaluation; `z` is the start; `cost_at(z)` serves the one-step rule.
+template <class Evaluation, class Evaluate, class CostAt = NoCostAt>
 LmOutcome<Evaluation> levenberg_marquardt(Evaluate&& evaluate, Eigen::VectorXd z,
-                                          const LmSettings& settings) {
+                                          const LmSettings& settings, CostAt cost_at = {}) {
   LmOutcome<Evaluation> out;
   out.at_z = evaluate(z);
   out.z = z;
@@ -135,6 +167,20 @@ LmOutcome<Evaluation> levenberg_marquardt(Evaluate&& evaluate, Eigen::VectorXd z
     const double predicted =
         2.0 * step_scaled.dot(scaled_gradient) - step_scaled.dot(scaled * step_scaled);
     const Eigen::VectorXd z_new = out.z + step;
+    if constexpr (!std::is_same_v<CostAt, NoCostAt>) {
+      if (it == 0 && predicted > 0.0) {
+        Evaluation at_step;
+        if (accept_one_step(cost_at, z_new, cur, predicted, cost_per_observation, settings,
+                            at_step)) {
+          out.z = z_new;
+          out.at_z.adopt_cost(at_step);
+          out.one_step = true;
+          out.converged = true;
+          out.message = "converged (one Gauss-Newton step)";
+          return out;
+        }
+      }
+    }
     Evaluation trial = evaluate(z_new);
     if (trial.stop != nullptr) {
       out.message = trial.stop;

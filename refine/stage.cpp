@@ -21,6 +21,14 @@ struct Evaluation {
   Eigen::VectorXd gradient;
   PassResult pass;
   std::shared_ptr<ResidualValidator> validator;  // StageOptions::trial_covariance
+
+  // The one-step rule's accepted start (refine/levenberg_marquardt.hpp): the cost and the
+  // residuals' sums of squares are the step's, the rest the start's.
+  void adopt_cost(const Evaluation& at_step) {
+    cost = at_step.cost;
+    pass.cost = at_step.pass.cost;
+    pass.rss = at_step.pass.rss;
+  }
 };
 
 // The cost of residuals at 1e-12 of each channel's RMS: what rounding leaves on noise-free data
@@ -86,10 +94,27 @@ LmSettings lm_settings(std::size_t samples, const PassSettings& pass_settings, i
   lm.max_iterations = max_iterations;
   lm.initial_damping = options.initial_damping;
   lm.decrement_tolerance = options.decrement_tolerance;
+  lm.one_step_tolerance = options.one_step_tolerance;
   lm.observations = static_cast<double>(samples) *
                     ((pass_settings.weight[0] > 0.0 && !pass_settings.thermal_only ? 1.0 : 0.0) +
                      (pass_settings.weight[1] > 0.0 ? 1.0 : 0.0));
   return lm;
+}
+
+// The one-step rule's check: the cost alone at p, which must be a model as stable as a trial's.
+Evaluation cost_only(std::span<const WindowSample> window, const ParamVector& p,
+                     PassSettings pass_settings, Budget& budget, const TbarRange& range) {
+  Evaluation e;
+  if (const StopReason stop = budget.stop(); stop != StopReason::none) {
+    e.stop = to_text(stop);
+    return e;
+  }
+  if (!p.allFinite() || !stable_over(p, range)) return e;
+  pass_settings.jacobian = false;
+  e.pass = budget.pass(window, p, pass_settings);
+  e.finite = e.pass.finite && std::isfinite(e.pass.cost) && stable_over(p, widened(range, e.pass));
+  e.cost = e.pass.cost;
+  return e;
 }
 
 }  // namespace
@@ -101,10 +126,12 @@ StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c
       window,
       {pass_settings.thermal_only ? 0.0 : pass_settings.weight[0], pass_settings.weight[1]});
   const Eigen::MatrixXd t = c.jacobian();
+  const bool one_step = options.one_step_tolerance > 0.0 && options.trial_covariance != nullptr;
   bool first = true;
   auto evaluate = [&](const Eigen::VectorXd& z) {
     Evaluation e;
-    const bool trial = !std::exchange(first, false);
+    // The start's pass carries the sums too where the one-step rule may end the stage there.
+    const bool with_sums = !std::exchange(first, false) || one_step;
     if (const StopReason stop = budget.stop(); stop != StopReason::none) {
       e.stop = to_text(stop);
       return e;
@@ -115,7 +142,7 @@ StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c
     // A model unstable over the T̄ range already known fails whatever its pass gives (its own range
     // only widens that one): a failed step without simulating toward its overflow.
     if (!pass_settings.thermal_only && !stable_over(p, range)) return e;
-    e.pass = stage_pass(window, p, pass_settings, trial ? options.trial_covariance : nullptr,
+    e.pass = stage_pass(window, p, pass_settings, with_sums ? options.trial_covariance : nullptr,
                         budget, e.validator);
     // An unstable model (negative damping at some T̄ of the window, θ3 or θ5 ≤ 0) counts as not
     // finite: the solver backs off instead of following a diverging simulation.
@@ -133,9 +160,13 @@ StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c
     e.gradient = t.transpose() * e.pass.jtwr;
     return e;
   };
+  auto cost_at = [&](const Eigen::VectorXd& z) {
+    return cost_only(window, c.to_p(z), pass_settings, budget, range);
+  };
   LmSettings lm = lm_settings(window.size(), pass_settings, max_iterations, options);
   lm.cost_floor = cost_floor;
-  auto out = levenberg_marquardt<Evaluation>(evaluate, c.start(), lm);
+  auto out = one_step ? levenberg_marquardt<Evaluation>(evaluate, c.start(), lm, cost_at)
+                      : levenberg_marquardt<Evaluation>(evaluate, c.start(), lm);
   StageResult r;
   r.p = c.to_p(out.z);
   r.pass = std::move(out.at_z.pass);

@@ -85,6 +85,9 @@ struct StageOptions {
   double initial_damping = kInitialDamping;
   double decrement_tolerance = kDecrementTolerance;
   const TrialCovariance* trial_covariance = nullptr;
+  // > 0 (with trial_covariance): the one-step rule (LmSettings::one_step_tolerance), the start's
+  // pass then also carrying the covariance's sums.
+  double one_step_tolerance = 0.0;
 };
 
 struct StageResult {

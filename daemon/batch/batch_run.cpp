@@ -10,6 +10,7 @@
 #include <optional>
 
 #include "common/clock.hpp"
+#include "common/heap.hpp"
 #include "daemon/analysis/health/health_agent.hpp"
 #include "daemon/analysis/refine/refine_worker.hpp"
 #include "daemon/analysis/refine/refiner.hpp"
@@ -404,6 +405,8 @@ std::string health_lines(const nlohmann::json& s) {
 }  // namespace
 
 nlohmann::json run_batch(config::DaemonConfig cfg, const BatchOptions& options) {
+  // As the service's memory set-up does: the refinement's passes reuse their buffers.
+  keep_freed_memory();
   return BatchRun(std::move(cfg), options).run();
 }
 

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cmath>
 #include <iterator>
+#include <random>
 #include <set>
 #include <string>
 #include <vector>
@@ -311,6 +312,91 @@ TEST(LevenbergMarquardt, StallsWhenAStepFromAnUnresolvedModelIsTooStiff) {
   // A run that starts beyond the resolution may come back: it does not stall.
   const auto started_there = descend_to_the_wall(-1.0);
   EXPECT_FALSE(started_there.stalled);
+}
+
+// y = a·e^{−b·t} with unit Gaussian noise, 200 samples: a least-squares problem whose cost is
+// quadratic near its minimum and far from quadratic a long way off.
+struct DecayEvaluation {
+  const char* stop = nullptr;
+  bool finite = false;
+  double cost = 0.0;
+  Eigen::MatrixXd normal;
+  Eigen::VectorXd gradient;
+  int full_passes = 0;  // how many evaluations had a Jacobian (the start's, for an accepted step)
+
+  void adopt_cost(const DecayEvaluation& at_step) { cost = at_step.cost; }
+};
+
+struct DecayProblem {
+  std::vector<double> t, y;
+  int full = 0, cost_only = 0;
+
+  DecayProblem() {
+    std::mt19937 rng(11);
+    std::normal_distribution<double> noise(0.0, 1.0);
+    for (int i = 0; i < 200; ++i) {
+      t.push_back(0.05 * i);
+      y.push_back(100.0 * std::exp(-0.7 * t.back()) + noise(rng));
+    }
+  }
+  DecayEvaluation at(const Eigen::VectorXd& z, bool jacobian) {
+    ++(jacobian ? full : cost_only);
+    DecayEvaluation e;
+    e.normal = Eigen::MatrixXd::Zero(2, 2);
+    e.gradient = Eigen::VectorXd::Zero(2);
+    for (std::size_t i = 0; i < t.size(); ++i) {
+      const double g = std::exp(-z[1] * t[i]), r = y[i] - z[0] * g;
+      const Eigen::Vector2d j(g, -z[0] * t[i] * g);
+      e.cost += r * r;
+      e.normal += j * j.transpose();
+      e.gradient += j * r;
+    }
+    e.finite = std::isfinite(e.cost);
+    e.full_passes = full;
+    return e;
+  }
+  // `tolerance`: the decrement's and the one-step rule's (0: the full iteration only).
+  LmOutcome<DecayEvaluation> fit(const Eigen::Vector2d& start, double tolerance) {
+    LmSettings lm;
+    lm.observations = static_cast<double>(t.size());
+    lm.initial_damping = 0.0;
+    const bool one_step = tolerance > 0.0;
+    if (one_step) lm.decrement_tolerance = tolerance;
+    const auto full_pass = [this](const Eigen::VectorXd& z) { return at(z, true); };
+    if (!one_step) return levenberg_marquardt<DecayEvaluation>(full_pass, start, lm);
+    lm.one_step_tolerance = tolerance;
+    return levenberg_marquardt<DecayEvaluation>(
+        full_pass, start, lm, [this](const Eigen::VectorXd& z) { return at(z, false); });
+  }
+};
+
+TEST(LevenbergMarquardt, TakesTheFirstStepOnOneCostPassBesideTheSolution) {
+  DecayProblem problem;
+  const auto full = problem.fit({100.0, 0.7}, 0.0);
+  ASSERT_TRUE(full.converged) << full.message;
+  // σ of a and b from the normal matrix at the solution (unit noise).
+  const Eigen::Vector2d sigma = full.at_z.normal.inverse().diagonal().cwiseSqrt();
+  // A start 0.5σ off in both, as a neighbouring window's solution is.
+  problem.full = problem.cost_only = 0;
+  // Both rules at 1e-3 of the cost per observation: within √1e-3 σ of the minimum.
+  const auto near = problem.fit(full.z + 0.5 * sigma, 1e-3);
+  EXPECT_TRUE(near.one_step);
+  EXPECT_TRUE(near.converged);
+  EXPECT_EQ(problem.full, 1);
+  EXPECT_EQ(problem.cost_only, 1);
+  for (int i = 0; i < 2; ++i) EXPECT_LT(std::abs(near.z[i] - full.z[i]), 0.03 * sigma[i]) << i;
+  // The cost is the step's, the normal matrix the start's.
+  EXPECT_NEAR(near.at_z.cost, full.at_z.cost, 1e-3 * full.at_z.cost / 200.0);
+  EXPECT_EQ(near.at_z.full_passes, 1);
+
+  // Far off (b at twice its value) the linear model does not hold: the run goes on as before.
+  problem.full = problem.cost_only = 0;
+  const auto far = problem.fit({100.0, 1.4}, 1e-3);
+  EXPECT_FALSE(far.one_step);
+  EXPECT_EQ(problem.cost_only, 1);
+  EXPECT_GT(problem.full, 2);
+  ASSERT_TRUE(far.converged) << far.message;
+  for (int i = 0; i < 2; ++i) EXPECT_LT(std::abs(far.z[i] - full.z[i]), 0.03 * sigma[i]) << i;
 }
 
 TEST(GoldenSection, FindsAParabolasVertexAndCountsItsSteps) {

@@ -1,6 +1,5 @@
 #include "daemon/core/rt/rt_setup.hpp"
 
-#include <malloc.h>
 #include <pthread.h>
 #include <sched.h>
 #include <sys/mman.h>
@@ -10,6 +9,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <stdexcept>
+
+#include "common/heap.hpp"
 
 // AddressSanitizer and ThreadSanitizer reserve terabytes of shadow memory: mlockall() would try to
 // fault all of it in. Sanitizer builds are for tests, so they skip the lock with a warning.
@@ -127,7 +128,7 @@ void lock_and_prefault(const RtSettings& s, Outcome& outcome) {
     }
     // Keep freed memory in the heap and never satisfy malloc with a fresh mmap: after the
     // prefault below, allocations made during start-up come from locked, already-mapped pages.
-    if (mallopt(M_TRIM_THRESHOLD, -1) != 1 || mallopt(M_MMAP_MAX, 0) != 1) {
+    if (!keep_freed_memory()) {
       outcome.fail(
           "cannot configure malloc to keep memory (mallopt failed) — the C library "
           "is not glibc; set loop.realtime.lock_memory: false");
