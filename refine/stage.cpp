@@ -101,15 +101,23 @@ LmSettings lm_settings(std::size_t samples, const PassSettings& pass_settings, i
   return lm;
 }
 
+// Whether p is refused before its pass: the budget is spent (e.stop), or p is not finite or, for a
+// joint model, not stable over the T̄ range already known (a failed step without simulating
+// toward its overflow; its own pass only widens that range).
+bool refused_before_pass(const ParamVector& p, bool thermal_only, const Budget& budget,
+                         const TbarRange& range, Evaluation& e) {
+  if (const StopReason stop = budget.stop(); stop != StopReason::none) {
+    e.stop = to_text(stop);
+    return true;
+  }
+  return !p.allFinite() || (!thermal_only && !stable_over(p, range));
+}
+
 // The one-step rule's check: the cost alone at p, which must be a model as stable as a trial's.
 Evaluation cost_only(std::span<const WindowSample> window, const ParamVector& p,
                      PassSettings pass_settings, Budget& budget, const TbarRange& range) {
   Evaluation e;
-  if (const StopReason stop = budget.stop(); stop != StopReason::none) {
-    e.stop = to_text(stop);
-    return e;
-  }
-  if (!p.allFinite() || !stable_over(p, range)) return e;
+  if (refused_before_pass(p, false, budget, range, e)) return e;
   pass_settings.jacobian = false;
   e.pass = budget.pass(window, p, pass_settings);
   e.finite = e.pass.finite && std::isfinite(e.pass.cost) && stable_over(p, widened(range, e.pass));
@@ -132,16 +140,9 @@ StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c
     Evaluation e;
     // The start's pass carries the sums too where the one-step rule may end the stage there.
     const bool with_sums = !std::exchange(first, false) || one_step;
-    if (const StopReason stop = budget.stop(); stop != StopReason::none) {
-      e.stop = to_text(stop);
-      return e;
-    }
+    // p holds every entry of z: a non-finite step is a failed step, never a simulation.
     const ParamVector p = c.to_p(z);
-    // A non-finite θ is a failed step, never a simulation.
-    if (!z.allFinite() || !p.allFinite()) return e;
-    // A model unstable over the T̄ range already known fails whatever its pass gives (its own range
-    // only widens that one): a failed step without simulating toward its overflow.
-    if (!pass_settings.thermal_only && !stable_over(p, range)) return e;
+    if (refused_before_pass(p, pass_settings.thermal_only, budget, range, e)) return e;
     e.pass = stage_pass(window, p, pass_settings, with_sums ? options.trial_covariance : nullptr,
                         budget, e.validator);
     // An unstable model (negative damping at some T̄ of the window, θ3 or θ5 ≤ 0) counts as not
