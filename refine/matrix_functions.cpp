@@ -26,6 +26,20 @@ constexpr std::array<double, kSeriesTerms + 8> kInverse = [] {
 constexpr std::array<double, 6> kInverseFactorial{1.0,       1.0,        0.5,
                                                   1.0 / 6.0, 1.0 / 24.0, 1.0 / 120.0};
 
+// Up to this |z| the first eight terms of φ2's series reach the last bit: the ninth,
+// |z|⁸/10!, is below 1e-18 of φ2 ≥ 0.49.
+constexpr double kShortSeriesRadius = 1.0 / 32.0;
+// 1/(j+2)! for j = 0..7.
+constexpr std::array<double, 8> kPhi2Series = [] {
+  std::array<double, 8> c{};
+  double f = 2.0;
+  for (std::size_t j = 0; j < c.size(); ++j) {
+    c[j] = 1.0 / f;
+    f *= static_cast<double>(j + 3);
+  }
+  return c;
+}();
+
 // Whether a series whose sum is `sum` has converged once its next term is `term`: that and every
 // later term are below 1e-17 of it, under half an ulp.
 bool converged(double term, double sum) noexcept {
@@ -162,6 +176,15 @@ ExpPhi exp_phi(const Matrix2& m) noexcept {
 }
 
 Phi12 phi12(double z) noexcept {
+  if (std::abs(z) <= kShortSeriesRadius) {
+    // Σ_{j<8} z^j/(j+2)! in Estrin's order: three levels of products instead of a chain of eight
+    // (the slow pole of a stiff pair, whose φ waits on nothing else).
+    const auto& c = kPhi2Series;
+    const double z2 = z * z, z4 = z2 * z2;
+    const double p2 = (c[0] + c[1] * z) + z2 * (c[2] + c[3] * z) +
+                      z4 * ((c[4] + c[5] * z) + z2 * (c[6] + c[7] * z));
+    return {1.0 + z * p2, p2};
+  }
   if (std::abs(z) < 0.5) {
     // φ2 from its series Σ z^j/(j+2)! until the next term cannot change the sum (4 terms at
     // |z| = 1e-3, 16 at 0.5), then φ1 = 1 + z·φ2.
