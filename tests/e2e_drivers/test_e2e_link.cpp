@@ -195,10 +195,10 @@ TEST(E2eLink, RtuLateRepliesCostATransactionNotTheLink) {
 // Read exception 4 (a failed input module) while writes still work: FAULT names the exception,
 // the 0 V write reaches the device (peer's log), STATUS says 0 V confirmed.
 TEST(E2eLink, ReadExceptionFaultsWithTheExceptionNamedAndZeroVoltsDelivered) {
-  LinkRun run;
+  LinkRun run("", 0.01, 0.004);
   run.start_peer({"--exception-after", "2", "--fault-duration", "1.5", "--exception-code", "4",
                   "--exception-reads-only"});
-  run.start_daemon();
+  run.start_daemon(kTolerant);
   ASSERT_EQ(state_of(run.wait_state("running", 10.0)), "running") << run.daemon->output();
   const auto fault = run.wait_injected_fault(10.0);
   ASSERT_EQ(state_of(fault), "fault") << fault.dump();
@@ -219,9 +219,9 @@ TEST(E2eLink, ReadExceptionFaultsWithTheExceptionNamedAndZeroVoltsDelivered) {
 // Exceptions to every request (writes too): 0 V cannot be delivered, and STATUS says so with the
 // voltage the device last acknowledged, the one in the peer's log.
 TEST(E2eLink, ExceptionToEveryRequestLeavesTheOutputUnconfirmed) {
-  LinkRun run;
+  LinkRun run("", 0.01, 0.004);
   run.start_peer({"--exception-after", "2", "--exception-code", "4"});
-  run.start_daemon();
+  run.start_daemon(kTolerant);
   ASSERT_EQ(state_of(run.wait_state("running", 10.0)), "running") << run.daemon->output();
   const auto fault = run.wait_injected_fault(10.0);
   ASSERT_EQ(state_of(fault), "fault") << fault.dump();
