@@ -150,6 +150,10 @@ void HealthMonitor::add_window(const WindowEstimate& w) {
     return;
   }
   last_window_end_ = w.t_end;
+  all_windows_.push_back(w);
+  const double oldest_kept = w.t_end - settings_.trend_span_s;
+  std::erase_if(all_windows_,
+                [oldest_kept](const WindowEstimate& h) { return h.t_begin < oldest_kept; });
   report_.has_window = true;
   report_.indicators = derive_indicators(w.theta, w.covariance, settings_.heat_capacity_j_per_c);
   WaldThresholds baseline_th;
@@ -233,28 +237,28 @@ double HealthMonitor::window_onset_estimate(const WindowEstimate& w, int paramet
   return std::clamp(onset, w.t_begin, w.t_end);
 }
 
-void HealthMonitor::update_drift(const WindowEstimate& w) {
-  DriftReport& d = report_.drift;
-  d = DriftReport{};
-  if (history_.size() < 2 || history_.back().midpoint() - history_.front().midpoint() <
-                                 std::max(settings_.trend_min_span_s, 1e-9))
-    return;
-  const TrendFit fit = fit_trend(history_, w.midpoint(), true);
-  if (!fit.with_slope) return;
+// The drift test on `windows` (time order, `latest` the newest): each parameter's slope against
+// the scan threshold and drift_per_hour. Not valid below two windows whose midpoints span
+// trend_min_span_s.
+DriftReport HealthMonitor::assess_trend(std::span<const WindowEstimate> windows,
+                                        const WindowEstimate& latest) const {
+  DriftReport d;
+  if (windows.size() < 2 || windows.back().midpoint() - windows.front().midpoint() <
+                                std::max(settings_.trend_min_span_s, 1e-9))
+    return d;
+  const TrendFit fit = fit_trend(windows, latest.midpoint(), true);
+  if (!fit.with_slope) return d;
   int free = 0;
   for (int i = 0; i < kParams; ++i) free += fit.slope_sigma[i] > 0.0 ? 1 : 0;
-  if (free == 0) return;
+  if (free == 0) return d;
   d.valid = true;
   d.data_span_s = fit.data_span;
   d.windows = fit.windows;
   // A moving least-squares slope over a span S decorrelates at β = 3/S (scan_threshold.hpp).
-  const double span = std::max(fit.data_span, w.length());
-  const double spacing = history_.size() >= 2
-                             ? std::clamp(w.t_end - history_[history_.size() - 2].t_end, 1e-3, span)
-                             : span;
+  const double span = std::max(fit.data_span, latest.length());
+  const double spacing = std::clamp(latest.t_end - windows[windows.size() - 2].t_end, 1e-3, span);
   d.z_threshold =
       std::sqrt(chi_square_scan_threshold(rate_per_detector_ / free, 1, 3.0 / span, spacing));
-  bool drifting = false;
   for (int i = 0; i < kParams; ++i) {
     ParameterTrend& p = d.parameters[i];
     if (!(fit.slope_sigma[i] > 0.0)) continue;
@@ -264,8 +268,16 @@ void HealthMonitor::update_drift(const WindowEstimate& w) {
     p.relative_per_hour = fit.level[i] != 0.0 ? p.per_hour / std::abs(fit.level[i]) : 0.0;
     p.drifting = std::abs(fit.slope[i]) > d.z_threshold * fit.slope_sigma[i] &&
                  std::abs(p.relative_per_hour) >= settings_.drift_per_hour;
-    drifting = drifting || p.drifting;
   }
+  return d;
+}
+
+void HealthMonitor::update_drift(const WindowEstimate& w) {
+  report_.drift = assess_trend(history_, w);
+  const DriftReport& d = report_.drift;
+  if (!d.valid) return;
+  bool drifting = false;
+  for (const auto& p : d.parameters) drifting = drifting || p.drifting;
   // Re-armed once the slopes have been within bounds for a window length: a slope test that
   // has just crossed its threshold by chance tends to cross it again before its data renew.
   // Clear means every slope's estimate is within drift_per_hour, not merely insignificant: a
@@ -288,7 +300,7 @@ void HealthMonitor::update_drift(const WindowEstimate& w) {
 }
 
 void HealthMonitor::raise_drift(double t, const std::array<ParameterTrend, kParams>& trend,
-                                double onset, int parameter) {
+                                double onset, int parameter, const ParameterMask& candidates) {
   drift_armed_ = false;
   drift_clear_since_ = std::numeric_limits<double>::quiet_NaN();
   ++report_.drifts;
@@ -299,12 +311,18 @@ void HealthMonitor::raise_drift(double t, const std::array<ParameterTrend, kPara
   e.change.onset = onset;
   e.change.detected_at = t;
   e.change.parameter = parameter;
+  e.change.candidates = candidates;
   if (report_.state == State::ok) set_state(State::drift, t);
   e.state = report_.state;
   events_.push_back(e);
 }
 
 void HealthMonitor::raise_change(const ChangePoint& change) {
+  if (continues_chain(change)) {
+    continue_chain(change);
+    return;
+  }
+  start_chain(change);
   ++report_.changes;
   report_.has_change = true;
   report_.change = change;
@@ -346,6 +364,9 @@ void HealthMonitor::set_state(State state, double t) {
 
 void HealthMonitor::acknowledge(double t) {
   if (report_.state == State::ok) return;
+  // A change acknowledged is the actuator as it is now: the next alarm is a change of its own.
+  // An acknowledged drift goes on silenced.
+  if (report_.state == State::changed) chain_.active = false;
   ++report_.acknowledged;
   set_state(State::ok, t);
   HealthEvent e;

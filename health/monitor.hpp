@@ -33,11 +33,14 @@
 // reference has not caught up with a growing one.
 //
 // After a change at onset τ the windows that straddle τ leave the trends, and the detectors wait
-// for the first window entirely after τ (one window length) to be their new reference. `changed`
-// and `drift` stay latched until acknowledge(); a drift is raised again only after its slopes
-// have stayed within bounds for a window length and then left them again.
+// for the first window entirely after τ (one window length) to be their new reference. An alarm
+// that may be the same parameters soon after that restart continues the change: one `drift`,
+// then counted alarms without events (monitor_chain.cpp). `changed` and `drift` stay latched until
+// acknowledge(); a drift is raised again only after its slopes have stayed within bounds for a
+// window length and then left them again.
 
 #include <cstdint>
+#include <span>
 #include <utility>
 #include <vector>
 
@@ -143,6 +146,8 @@ struct HealthReport {
   std::uint64_t changes = 0;
   std::uint64_t drifts = 0;
   std::uint64_t dismissed = 0;  // fast alarms whose named change was below min_relative_change
+  // Alarms taken as a change going on (monitor_chain.cpp): the first raised `drift`.
+  std::uint64_t drift_alarms = 0;
   std::uint64_t acknowledged = 0;
 };
 
@@ -201,8 +206,14 @@ class HealthMonitor {
   bool blocks_show_drift(int parameter, double onset, ShapeFit& ramp) const;
   void raise_change(const ChangePoint& change);
   void push_change_event(EventKind kind, const ChangePoint& change);
+  DriftReport assess_trend(std::span<const WindowEstimate> windows,
+                           const WindowEstimate& latest) const;
   void raise_drift(double t, const std::array<ParameterTrend, kParams>& trend, double onset,
-                   int parameter);
+                   int parameter, const ParameterMask& candidates = {});
+  void start_chain(const ChangePoint& change);
+  bool continues_chain(const ChangePoint& change) const;
+  void continue_chain(const ChangePoint& change);
+  void name_in_chain(const ChangePoint& change);
   void start_segment(double onset, double t);
   void confirm_pending(const WindowEstimate& w);
   void set_state(State state, double t);
@@ -213,6 +224,20 @@ class HealthMonitor {
   WindowEstimate baseline_;
   double rate_per_detector_;             // false alarms per second each detector may raise
   std::vector<WindowEstimate> history_;  // windows of the current segment, in time order
+  // Every usable window of the last trend_span_s, across segments (a drift's slope).
+  std::vector<WindowEstimate> all_windows_;
+  // The latest change and the alarms of its block that continued it (monitor_chain.cpp).
+  struct ChangeChain {
+    bool active = false;
+    ParameterMask parameters{};  // what its changes may be: names, else candidates
+    double first_onset = 0.0;
+    double last_detected = 0.0;
+    bool drift_raised = false;
+    void add(const ParameterMask& more) {
+      for (int i = 0; i < kParams; ++i) parameters[i] = parameters[i] || more[i];
+    }
+  };
+  ChangeChain chain_;
   double segment_start_;
   bool first_segment_ = true;
   bool tested_against_baseline_ = false;

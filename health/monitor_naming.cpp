@@ -112,6 +112,7 @@ void HealthMonitor::name_from_window(const WindowEstimate& w) {
 void HealthMonitor::raise_name(const ChangePoint& change) {
   naming_.active = false;
   report_.change = change;
+  name_in_chain(change);
   push_change_event(EventKind::named, change);
   update_reference(change.detected_at);
 }

@@ -17,6 +17,8 @@ struct RunOptions {
   bool blocks = true;  // feed the fast detector
   Matrix6 window_covariance = window_covariance_300s();
   std::uint64_t seed = 1;
+  double acknowledge_at_s =
+      -1.0;  // the user acknowledges at the first window after it (< 0: never)
 };
 
 struct RunResult {
@@ -44,6 +46,7 @@ inline RunResult run_monitor(const HealthSettings& settings, const ThetaOfTime& 
                      o.seed + 2000);
   RunResult result;
   double t_block = 0.0;
+  bool acknowledged = false;
   // Windows end at window_s, window_s + chunk_s, ...; blocks fill the time between them.
   for (WindowEstimate w = windows.next(); w.t_end <= o.duration_s; w = windows.next()) {
     for (; o.blocks && t_block + settings.block_s <= w.t_end + 1e-9; t_block += settings.block_s) {
@@ -53,6 +56,10 @@ inline RunResult run_monitor(const HealthSettings& settings, const ThetaOfTime& 
       monitor.add_block(scores.block(t_block, t_block + settings.block_s, theta(mid), ref.theta));
     }
     monitor.add_window(w);
+    if (o.acknowledge_at_s >= 0.0 && w.t_end >= o.acknowledge_at_s && !acknowledged) {
+      monitor.acknowledge(w.t_end);
+      acknowledged = true;
+    }
     for (auto& e : monitor.take_events()) result.events.push_back(e);
   }
   result.report = monitor.report();

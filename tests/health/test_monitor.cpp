@@ -1,9 +1,11 @@
 // The health monitor on synthetic windows and score blocks (monitor_run.hpp): quiet on a steady
 // plant, `changed` with the parameter and onset after a step, `drift` (once, and no `changed`)
-// on a plant drifting from the start, acknowledgements, and bad input.
+// on a plant drifting from the start, changes that recur in one block, acknowledgements, and bad
+// input.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <vector>
 
 #include "tests/health/monitor_run.hpp"
 
@@ -197,6 +199,64 @@ TEST(HealthMonitor, ADriftThatStartsLateIsMostlyDrift) {
   }
   EXPECT_EQ(drifts, 4);
   EXPECT_LE(changes, 2);
+}
+
+// b/m stepping by `relative` at each of `at`.
+test::ThetaOfTime staircase(double relative, std::vector<double> at) {
+  return [=](double t) {
+    Vector6 th = test::paper_theta();
+    for (double a : at)
+      if (t >= a) th[0] *= 1.0 + relative;
+    return th;
+  };
+}
+
+TEST(HealthMonitor, ChangesThatRecurInOneBlockAreOneDrift) {
+  // Three b/m steps 600 s apart, each within reference_span_s (1200 s) of the last alarm: the
+  // first is `changed`, the second continues it as one `drift` of the mechanical block since
+  // the first onset, the third is counted without an event.
+  const double first = 2405.0;
+  test::RunOptions o;
+  o.duration_s = first + 1800.0;
+  const auto r = test::run_monitor(HealthSettings{},
+                                   staircase(0.10, {first, first + 600.0, first + 1200.0}), o);
+  EXPECT_EQ(r.changes(), 1);
+  ASSERT_EQ(r.drifts(), 1);
+  EXPECT_EQ(r.report.drift_alarms, 2u);
+  EXPECT_EQ(r.report.state, State::drift);
+  for (const auto& e : r.events) {
+    if (e.kind != EventKind::drift) continue;
+    EXPECT_NEAR(e.change.onset, first, 15.0);
+    EXPECT_GT(e.t, first + 600.0);
+    EXPECT_TRUE(e.change.candidates[0]);
+    EXPECT_FALSE(e.change.candidates[4]);
+    EXPECT_FALSE(e.change.candidates[5]);
+  }
+}
+
+TEST(HealthMonitor, StepsFartherApartThanTheReferenceSpanAreTwoChanges) {
+  const double first = 2405.0;
+  test::RunOptions o;
+  o.duration_s = first + 2100.0;
+  const auto r = test::run_monitor(HealthSettings{}, staircase(0.10, {first, first + 1500.0}), o);
+  EXPECT_EQ(r.changes(), 2);
+  EXPECT_EQ(r.drifts(), 0);
+  EXPECT_EQ(r.report.drift_alarms, 0u);
+  EXPECT_EQ(r.report.state, State::changed);
+}
+
+TEST(HealthMonitor, AStepAfterAnAcknowledgedChangeIsAChangeOfItsOwn) {
+  // The same steps 600 s apart as above, the first acknowledged before the second: the user has
+  // accepted the actuator as it became, so the second is not the first one going on.
+  const double first = 2405.0;
+  test::RunOptions o;
+  o.duration_s = first + 1200.0;
+  o.acknowledge_at_s = first + 300.0;
+  const auto r = test::run_monitor(HealthSettings{}, staircase(0.10, {first, first + 600.0}), o);
+  EXPECT_EQ(r.changes(), 2);
+  EXPECT_EQ(r.drifts(), 0);
+  EXPECT_EQ(r.report.drift_alarms, 0u);
+  EXPECT_EQ(r.report.state, State::changed);
 }
 
 TEST(HealthMonitor, AcknowledgeReturnsToOk) {

@@ -18,6 +18,13 @@ std::string percent(double fraction, const char* format = "%+.1f %%") {
   return text;
 }
 
+std::string candidate_list(const scp::health::ParameterMask& candidates) {
+  std::string set;
+  for (std::size_t i = 0; i < candidates.size(); ++i)
+    if (candidates[i]) set += (set.empty() ? "" : ", ") + std::string(kParameterNames[i]);
+  return set;
+}
+
 std::string describe_change(const scp::health::ChangePoint& c) {
   char head[128];
   std::snprintf(head, sizeof(head), "(onset %.1f s, %s detector)", c.onset,
@@ -25,9 +32,7 @@ std::string describe_change(const scp::health::ChangePoint& c) {
   std::string text = head;
   if (c.parameter < 0) {
     // Not yet named: the parameters the data do not yet tell apart (an event `named` follows).
-    std::string set;
-    for (std::size_t i = 0; i < c.candidates.size(); ++i)
-      if (c.candidates[i]) set += (set.empty() ? "" : ", ") + std::string(kParameterNames[i]);
+    const std::string set = candidate_list(c.candidates);
     return set.empty() ? text : text + ": one of " + set;
   }
   const scp::health::ParameterShift& p = c.parameters[static_cast<std::size_t>(c.parameter)];
@@ -37,14 +42,20 @@ std::string describe_change(const scp::health::ChangePoint& c) {
          percent(p.relative) + " (σ " + percent(relative_sigma, "%.2g %%") + ")";
 }
 
-std::string describe_drift(const std::array<scp::health::ParameterTrend, 6>& trend) {
+// The drifting parameters with their slopes; a drift of repeated changes whose windows do not
+// yet give a significant slope says since when and which block.
+std::string describe_drift(const scp::health::HealthEvent& event) {
   std::string text;
-  for (std::size_t i = 0; i < trend.size(); ++i) {
-    if (!trend[i].drifting) continue;
+  for (std::size_t i = 0; i < event.trend.size(); ++i) {
+    if (!event.trend[i].drifting) continue;
     text += (text.empty() ? ": " : ", ") + std::string(kParameterNames[i]) + " " +
-            percent(trend[i].relative_per_hour) + "/h";
+            percent(event.trend[i].relative_per_hour) + "/h";
   }
-  return text;
+  const std::string set = candidate_list(event.change.candidates);
+  if (!text.empty() || set.empty()) return text;
+  char head[96];
+  std::snprintf(head, sizeof(head), " (changing since %.1f s): one of ", event.change.onset);
+  return head + set;
 }
 
 }  // namespace
@@ -68,7 +79,7 @@ std::string describe(const scp::health::HealthEvent& event) {
     case EventKind::named:
       return head + std::string(" ") + describe_change(event.change);
     case EventKind::drift:
-      return head + describe_drift(event.trend);
+      return head + describe_drift(event);
     case EventKind::acknowledged:
       break;
   }

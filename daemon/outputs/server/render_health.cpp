@@ -105,6 +105,7 @@ void put_full(json& out, const health::HealthView& v) {
   out["windows"] = r.windows;
   out["windows_rejected"] = r.windows_rejected;
   out["dismissed"] = r.dismissed;
+  out["drift_alarms"] = r.drift_alarms;
   out["acknowledged"] = r.acknowledged;
   out["residual_samples"] = v.residual_samples;
   out["residual_variance_ratio"] = {{"x", v.residual_variance_ratio[0]},
