@@ -1,8 +1,9 @@
 // Issue 30: actuator health through the real daemon. Offline (deterministic: the refinement and
 // the monitor run inline, the same fits every run): a step of R in the simulated plant mid-run is
-// reported as `changed`, naming 1/(R·Cth) with its onset near the step, and a clean run of the
-// same plant stays `ok`. Over the socket: baseline save is refused before the refinement has
-// converged, then save, show and clear work and are audited; health and health ack answer.
+// reported as `changed`, naming 1/(R·Cth) with its onset near the step, a clean run of the
+// same plant stays `ok`, and a drifting plant raises one `drift`, not a `changed` per refit. Over
+// the socket: baseline save is refused before the refinement has converged, then save, show and
+// clear work and are audited; health and health ack answer.
 
 #include <cmath>
 #include <cstdio>
@@ -30,10 +31,10 @@ json batch_config(const std::string& dir, const std::string& step_parameter, dou
        {"refine", {{"window_s", 120}, {"interval_s", 30}, {"min_window_s", 30}}}});
 }
 
-json run_batch(const TempDir& dir, const json& cfg) {
+json run_batch(const TempDir& dir, const json& cfg, const char* duration = kDuration) {
   write_config(dir.file("c.yaml"), cfg);
   const ProcessResult r = run_process(
-      {estimatord_path(), "--config", dir.file("c.yaml"), "--offline", "--duration", kDuration},
+      {estimatord_path(), "--config", dir.file("c.yaml"), "--offline", "--duration", duration},
       Seconds(600));
   EXPECT_EQ(r.exit_code, 0) << r.err << r.out;
   std::printf("%s", r.out.c_str());
@@ -94,6 +95,35 @@ TEST(Health, CleanRunWithColouredSensorNoiseStaysOk) {
   json cfg = batch_config(dir.path(), "none", 1.0);
   cfg["driver"]["sim"]["noise"]["correlation_s"] = 0.02;
   expect_stayed_ok(run_batch(dir, cfg));
+}
+
+// b +20 %/h from the start (the issue's drifting plant): each restart's reference is stale
+// within minutes, and before the chain of recurring changes every restart raised another
+// `changed` (14-16 in 2400 s). Now: at most the first alarm as `changed`, then one `drift` from
+// its onset, and the later alarms counted without events.
+TEST(Health, APlantDriftingFromTheStartRaisesOneDriftNotAStormOfChanges) {
+  TempDir dir;
+  json cfg = batch_config(dir.path(), "none", 1.0);
+  cfg["driver"]["sim"]["drift"]["b"] = 0.2;
+  const json s = run_batch(dir, cfg, "1500");
+  ASSERT_TRUE(s.contains("health")) << s.dump();
+  int changed = 0, drift = 0;
+  double first_onset = -1.0;
+  for (const json& e : s["health_events"]) {
+    if (e["event"] == "changed") {
+      ++changed;
+      if (first_onset < 0.0) first_onset = e["onset"].get<double>();
+    }
+    if (e["event"] == "drift") {
+      ++drift;
+      if (first_onset >= 0.0) {
+        EXPECT_TRUE(contains(e["text"].get<std::string>(), "since")) << e.dump();
+      }
+    }
+  }
+  EXPECT_LE(changed, 1) << s["health_events"].dump();
+  EXPECT_EQ(drift, 1) << s["health_events"].dump();
+  EXPECT_EQ(s["health"]["state"], "drift") << s["health"].dump();
 }
 
 // Real time: short windows so that a fit converges within seconds.
