@@ -34,6 +34,9 @@ class Budget {
   StopReason stop() const;
   // Every stop() from here on says `reason`.
   void end(StopReason reason) { ended_ = reason; }
+  // A new start within the same fit (refine/fit.cpp's start shapes): what was spent still
+  // counts, the earlier path's end does not.
+  void restart_path() { ended_ = StopReason::none; }
 
   // Whether the mechanical block of p has, somewhere in T̄ ∈ [tbar_lo, tbar_hi], a pole beyond
   // kUnresolvedPolePerSample of the window's sampling.

@@ -108,13 +108,46 @@ void conclude(FitContext& ctx, const FitState& state, StopReason stop, FitResult
   result.message = result.stop == StopReason::none ? state.joint.message : to_text(result.stop);
 }
 
-FitResult fit_staged(std::span<const WindowSample> window, const Vector6& theta_start,
-                     const FitSettings& settings) {
+namespace {
+
+// Shapes of the mechanical block tried, in this order, when the fit from the default shape
+// fails: θ3/θ1 (the default's is 1, an overdamped pair) grows by 30 at each, toward lightly
+// damped pairs. The scale search moves the damping ratio and the natural frequency together
+// (both as the square root of the common scale, θ1/θ3 fixed), so it cannot reach another ratio
+// by itself, and a lightly damped actuator whose dynamics the excitation barely reaches is
+// explained almost as well by the slow overdamped pair the default shape leads to.
+constexpr std::array<double, 3> kRetryStiffnessPerDamping = {30.0, 1000.0, 30000.0};
+
+bool out_of_budget(StopReason stop) {
+  return stop == StopReason::cancelled || stop == StopReason::evaluation_budget_spent ||
+         stop == StopReason::work_budget_spent;
+}
+
+FitResult fresh_result(std::span<const WindowSample> window, const Vector6& theta_start) {
   FitResult result;
   result.theta = theta_start;
   result.samples = window.size();
   result.t_begin = window.front().t;
   result.t_end = window.back().t;
+  return result;
+}
+
+// The stages after the thermal ones, and the verdict.
+void fit_mechanics(FitContext& ctx, FitState& state, bool default_shape, FitResult& result) {
+  if (default_shape) start_displacement_zero(ctx.window, ctx.settings, state.p);
+  start_with_positive_damping(ctx, state);
+  StopReason stop = StopReason::none;
+  if (ctx.settings.search_scale) stop = search_scale(ctx, state);
+  if (stop == StopReason::none) stop = fit_mechanical(ctx, state);
+  if (stop == StopReason::none) stop = fit_joint(ctx, state);
+  conclude(ctx, state, stop, result);
+}
+
+}  // namespace
+
+FitResult fit_staged(std::span<const WindowSample> window, const Vector6& theta_start,
+                     const FitSettings& settings) {
+  FitResult result = fresh_result(window, theta_start);
   FitState state;
   state.p = start_point(window, theta_start, settings.known);
   set_nuisance_start(settings.nuisance, state.p);
@@ -124,14 +157,27 @@ FitResult fit_staged(std::span<const WindowSample> window, const Vector6& theta_
   StopReason stop = fit_thermal(ctx, state);
   if (stop == StopReason::none) stop = hold_undetermined_lag(ctx, state);
   if (stop == StopReason::none) stop = fit_input_delay(ctx, state);
-  if (stop == StopReason::none) {
-    if (!usable_mechanical_start(theta_start)) start_displacement_zero(window, settings, state.p);
-    start_with_positive_damping(ctx, state);
-    if (settings.search_scale) stop = search_scale(ctx, state);
+  if (stop != StopReason::none) {
+    conclude(ctx, state, stop, result);
+    return result;
   }
-  if (stop == StopReason::none) stop = fit_mechanical(ctx, state);
-  if (stop == StopReason::none) stop = fit_joint(ctx, state);
-  conclude(ctx, state, stop, result);
+  const bool default_shape = !usable_mechanical_start(theta_start);
+  const FitState thermal_state = state;
+  FitContext attempt_ctx = ctx;
+  fit_mechanics(attempt_ctx, state, default_shape, result);
+  for (const double ratio : kRetryStiffnessPerDamping) {
+    if (!default_shape || result.converged || out_of_budget(result.stop)) break;
+    FitContext retry_ctx = ctx;
+    retry_ctx.budget = attempt_ctx.budget;  // every attempt's passes count against one budget
+    retry_ctx.budget.restart_path();
+    FitState retry = thermal_state;
+    start_mechanical_shape(window, ratio, settings.known, retry.p);
+    FitResult attempt = fresh_result(window, theta_start);
+    fit_mechanics(retry_ctx, retry, true, attempt);
+    attempt.iterations += result.iterations - thermal_state.iterations;
+    result = attempt;
+    attempt_ctx = retry_ctx;
+  }
   return result;
 }
 
