@@ -234,15 +234,19 @@ TEST(HealthMonitor, ChangesThatRecurInOneBlockAreOneDrift) {
   }
 }
 
-TEST(HealthMonitor, StepsFartherApartThanTheReferenceSpanAreTwoChanges) {
-  const double first = 2405.0;
-  test::RunOptions o;
-  o.duration_s = first + 2100.0;
-  const auto r = test::run_monitor(HealthSettings{}, staircase(0.10, {first, first + 1500.0}), o);
+void expect_two_separate_changes(const test::RunResult& r) {
   EXPECT_EQ(r.changes(), 2);
   EXPECT_EQ(r.drifts(), 0);
   EXPECT_EQ(r.report.drift_alarms, 0u);
   EXPECT_EQ(r.report.state, State::changed);
+}
+
+TEST(HealthMonitor, StepsFartherApartThanTheReferenceSpanAreTwoChanges) {
+  const double first = 2405.0;
+  test::RunOptions o;
+  o.duration_s = first + 2100.0;
+  expect_two_separate_changes(
+      test::run_monitor(HealthSettings{}, staircase(0.10, {first, first + 1500.0}), o));
 }
 
 TEST(HealthMonitor, AStepAfterAnAcknowledgedChangeIsAChangeOfItsOwn) {
@@ -252,11 +256,8 @@ TEST(HealthMonitor, AStepAfterAnAcknowledgedChangeIsAChangeOfItsOwn) {
   test::RunOptions o;
   o.duration_s = first + 1200.0;
   o.acknowledge_at_s = first + 300.0;
-  const auto r = test::run_monitor(HealthSettings{}, staircase(0.10, {first, first + 600.0}), o);
-  EXPECT_EQ(r.changes(), 2);
-  EXPECT_EQ(r.drifts(), 0);
-  EXPECT_EQ(r.report.drift_alarms, 0u);
-  EXPECT_EQ(r.report.state, State::changed);
+  expect_two_separate_changes(
+      test::run_monitor(HealthSettings{}, staircase(0.10, {first, first + 600.0}), o));
 }
 
 TEST(HealthMonitor, AcknowledgeReturnsToOk) {
