@@ -11,7 +11,7 @@
 // the first onset), the next are counted (`drift_alarms`) and restart the detectors without an
 // event, until the alarms stop for reference_span_s. Two real steps of those parameters within
 // that span are reported as one drift; the false alarms the rule can turn into a drift are the
-// detectors' designed rate times reference_span_s.
+// fast and sure detectors' designed rate times reference_span_s.
 #include <vector>
 
 #include "health/monitor.hpp"
