@@ -318,10 +318,7 @@ void HealthMonitor::raise_drift(double t, const std::array<ParameterTrend, kPara
 }
 
 void HealthMonitor::raise_change(const ChangePoint& change) {
-  if (continues_chain(change)) {
-    continue_chain(change);
-    return;
-  }
+  if (absorbed_by_chain(change)) return;
   start_chain(change);
   ++report_.changes;
   report_.has_change = true;

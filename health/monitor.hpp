@@ -211,8 +211,7 @@ class HealthMonitor {
   void raise_drift(double t, const std::array<ParameterTrend, kParams>& trend, double onset,
                    int parameter, const ParameterMask& candidates = {});
   void start_chain(const ChangePoint& change);
-  bool continues_chain(const ChangePoint& change) const;
-  void continue_chain(const ChangePoint& change);
+  bool absorbed_by_chain(const ChangePoint& change);
   void name_in_chain(const ChangePoint& change);
   void start_segment(double onset, double t);
   void confirm_pending(const WindowEstimate& w);
@@ -226,7 +225,7 @@ class HealthMonitor {
   std::vector<WindowEstimate> history_;  // windows of the current segment, in time order
   // Every usable window of the last trend_span_s, across segments (a drift's slope).
   std::vector<WindowEstimate> all_windows_;
-  // The latest change and the alarms of its block that continued it (monitor_chain.cpp).
+  // The latest change and the alarms of its parameters that continued it (monitor_chain.cpp).
   struct ChangeChain {
     bool active = false;
     ParameterMask parameters{};  // what its changes may be: names, else candidates

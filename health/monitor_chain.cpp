@@ -50,12 +50,12 @@ void HealthMonitor::start_chain(const ChangePoint& change) {
   chain_.drift_raised = false;
 }
 
-bool HealthMonitor::continues_chain(const ChangePoint& change) const {
-  return chain_.active && change.detected_at - chain_.last_detected <= settings_.reference_span_s &&
-         overlap(chain_.parameters, parameters_of(change));
-}
-
-void HealthMonitor::continue_chain(const ChangePoint& change) {
+// Whether `change` continues the latest one; if so it is taken as such (the first raises the
+// drift) and the detectors restart after it.
+bool HealthMonitor::absorbed_by_chain(const ChangePoint& change) {
+  if (!chain_.active || change.detected_at - chain_.last_detected > settings_.reference_span_s ||
+      !overlap(chain_.parameters, parameters_of(change)))
+    return false;
   chain_.last_detected = change.detected_at;
   chain_.add(parameters_of(change));
   ++report_.drift_alarms;
@@ -69,6 +69,7 @@ void HealthMonitor::continue_chain(const ChangePoint& change) {
     raise_drift(change.detected_at, trend.parameters, chain_.first_onset, -1, chain_.parameters);
   }
   start_segment(change.onset, change.detected_at);
+  return true;
 }
 
 // A name given to the latest change later (an event `named`) is one more parameter it may be.

@@ -231,10 +231,7 @@ void HealthMonitor::fast_alarm(const ScoreBlock& block) {
   }
   alarm_waits_ = 0;
   const ChangePoint c = fast_change(evidence, sum_since(onset), onset, block.t_end);
-  if (continues_chain(c)) {
-    continue_chain(c);
-    return;
-  }
+  if (absorbed_by_chain(c)) return;
   if (!c.definite) {
     // Named later, from the residuals since the onset against the reference it departed from.
     naming_.active = true;

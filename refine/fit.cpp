@@ -116,7 +116,8 @@ namespace {
 // (both as the square root of the common scale, θ1/θ3 fixed), so it cannot reach another ratio
 // by itself, and a lightly damped actuator whose dynamics the excitation barely reaches is
 // explained almost as well by the slow overdamped pair the default shape leads to.
-constexpr std::array<double, 3> kRetryStiffnessPerDamping = {30.0, 1000.0, 30000.0};
+constexpr std::array<MechanicalShape, 3> kRetryShapes = {
+    {{1.0, 30.0}, {1.0, 1000.0}, {1.0, 30000.0}}};
 
 bool out_of_budget(StopReason stop) {
   return stop == StopReason::cancelled || stop == StopReason::evaluation_budget_spent ||
@@ -165,13 +166,13 @@ FitResult fit_staged(std::span<const WindowSample> window, const Vector6& theta_
   const FitState thermal_state = state;
   FitContext attempt_ctx = ctx;
   fit_mechanics(attempt_ctx, state, default_shape, result);
-  for (const double ratio : kRetryStiffnessPerDamping) {
+  for (const MechanicalShape& shape : kRetryShapes) {
     if (!default_shape || result.converged || out_of_budget(result.stop)) break;
     FitContext retry_ctx = ctx;
     retry_ctx.budget = attempt_ctx.budget;  // every attempt's passes count against one budget
     retry_ctx.budget.restart_path();
     FitState retry = thermal_state;
-    start_mechanical_shape(window, ratio, settings.known, retry.p);
+    start_mechanical_shape(window, shape, settings.known, retry.p);
     FitResult attempt = fresh_result(window, theta_start);
     fit_mechanics(retry_ctx, retry, true, attempt);
     attempt.iterations += result.iterations - thermal_state.iterations;

@@ -27,9 +27,16 @@ ParamVector start_point(std::span<const WindowSample> window, const Vector6& the
 // start_point takes a default shape whose static gain is the window's static line's.
 bool usable_mechanical_start(const Vector6& theta);
 
-// θ1..θ4 of p (unless known) from a shape of the mechanical block: the default (1, its poles at
-// −1 and −1000 rad/s at scale 1) or θ3/θ1 = stiffness_per_damping, with the window's static gain.
-void start_mechanical_shape(std::span<const WindowSample> window, double stiffness_per_damping,
+// A shape of the mechanical block: θ1 and θ3 at scale 1, which the scale search multiplies
+// together.
+struct MechanicalShape {
+  double damping, stiffness;
+};
+// Poles at −1 and −1000 rad/s at scale 1: an overdamped pair.
+inline constexpr MechanicalShape kDefaultShape{1001.0, 1000.0};
+
+// θ1..θ4 of p (unless known) from `shape`, with the window's static gain.
+void start_mechanical_shape(std::span<const WindowSample> window, const MechanicalShape& shape,
                             const std::array<bool, kThetaSize>& known, ParamVector& p);
 
 // With the displacement sensor's zero estimated and the default shape started (after the

@@ -52,18 +52,6 @@ StaticLine static_line(std::span<const WindowSample> w, const ParamVector& p) {
   return {mean_x + gain * mean_t, gain};
 }
 
-// A mechanical shape θ1 = 1, θ3 = stiffness_per_damping at scale 1 (1001 and 1000 for the
-// default: poles at −1 and −1000 rad/s), no temperature-dependent damping, and the static gain of
-// the window's static line (with its constant: through the origin, a displacement zero of a fifth
-// of the stroke bent the gain so far that the fit ended at a fast pole); the scale search places
-// it.
-Eigen::Vector4d mechanical_shape(std::span<const WindowSample> w, double stiffness_per_damping) {
-  const double gain = static_line(w, ParamVector::Zero()).gain;
-  const double damping = stiffness_per_damping == 1.0 ? 1001.0 : 1.0;
-  const double stiffness = damping == 1001.0 ? 1000.0 : stiffness_per_damping;
-  return {damping, 0.0, stiffness, std::isfinite(gain) ? gain * stiffness : 0.0};
-}
-
 }  // namespace
 
 StopReason check_window(std::span<const WindowSample> w) {
@@ -89,15 +77,21 @@ ParamVector start_point(std::span<const WindowSample> window, const Vector6& the
     for (std::size_t j = 0; j < kThermalTheta.size(); ++j)
       if (!known[kThermalTheta[j]]) p[kThermalTheta[j]] = from_data[static_cast<Eigen::Index>(j)];
   }
-  if (!usable_mechanical_start(theta_start)) start_mechanical_shape(window, 1.0, known, p);
+  if (!usable_mechanical_start(theta_start))
+    start_mechanical_shape(window, kDefaultShape, known, p);
   return p;
 }
 
-void start_mechanical_shape(std::span<const WindowSample> window, double stiffness_per_damping,
+// The shape's θ1 and θ3 with no temperature-dependent damping, and the static gain of the
+// window's static line (with its constant: through the origin, a displacement zero of a fifth of
+// the stroke bent the gain so far that the fit ended at a fast pole); the scale search places it.
+void start_mechanical_shape(std::span<const WindowSample> window, const MechanicalShape& shape,
                             const std::array<bool, kThetaSize>& known, ParamVector& p) {
-  const Eigen::Vector4d shape = mechanical_shape(window, stiffness_per_damping);
+  const double gain = static_line(window, ParamVector::Zero()).gain;
+  const Eigen::Vector4d theta(shape.damping, 0.0, shape.stiffness,
+                              std::isfinite(gain) ? gain * shape.stiffness : 0.0);
   for (int j = 0; j < kMechanicalSize; ++j)
-    if (!known[j]) p[j] = shape[j];
+    if (!known[j]) p[j] = theta[j];
 }
 
 bool usable_mechanical_start(const Vector6& theta) {

@@ -43,7 +43,7 @@ std::string describe_change(const scp::health::ChangePoint& c) {
 }
 
 // The drifting parameters with their slopes; a drift of repeated changes whose windows do not
-// yet give a significant slope says since when and which block.
+// yet give a significant slope says since when and which parameters it may be.
 std::string describe_drift(const scp::health::HealthEvent& event) {
   std::string text;
   for (std::size_t i = 0; i < event.trend.size(); ++i) {
