@@ -55,7 +55,9 @@ double* BlockMeans::enter(double t) noexcept {
 
 void BlockMeans::close_open() noexcept {
   if (open_count_ == 0.0) return;
-  if (closed_ == max_blocks_) {
+  // Blocks shorter than the samples' spacing leave every other index empty, and one merge of
+  // pairs may then join none: merge until there is room (each halves every index, so they meet).
+  while (closed_ == max_blocks_) {
     merge_pairs();
     open_index_ /= 2;
   }

@@ -101,6 +101,24 @@ TEST(BlockMeans, AFullStoreMergesPairsAndKeepsEverySample) {
   }
 }
 
+TEST(BlockMeans, BlocksShorterThanTheSamplesSpacingMergeUntilThereIsRoom) {
+  // Samples 1 s apart into 0.4 s blocks, room for 4: the indices 0, 2, 5, 7 of a full store
+  // halve to 0, 1, 2, 3, which one merge of pairs does not join (it wrote past the store: a
+  // crash of the daemon when a fitted model's time constant set a block below 1 ms).
+  BlockMeans store(0.4, 1, 4);
+  double total = 0.0;
+  for (int k = 0; k < 40; ++k) {
+    store.accumulate(k)[0] += k;
+    total += k;
+  }
+  const MatrixXd m = store.means();
+  const VectorXd c = store.counts();
+  ASSERT_LE(c.size(), 5);
+  EXPECT_EQ(c.sum(), 40.0);
+  EXPECT_NEAR(m.col(0).dot(c), total, 1e-9);
+  EXPECT_GE(store.block_s(), 1.6);
+}
+
 TEST(BlockMeans, AGapLeavesNoEmptyBlock) {
   BlockMeans store(1.0, 1, 16);
   for (double t : {0.0, 0.5, 5.2, 5.7, 6.1}) store.accumulate(t)[0] += t;
