@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "health/covariance.hpp"
+
 namespace scp::health {
 
 namespace {
@@ -19,8 +21,10 @@ double scale_of(double theta) noexcept {
   return std::abs(theta) > 0.0 ? std::abs(theta) : 1.0;
 }
 
-// C⁻¹ of a covariance whose diagonal spans many decades: inverted as a correlation matrix.
-Matrix6 precision_of(const Vector6& theta, const Matrix6& covariance) {
+// C⁻¹ of a covariance whose diagonal spans many decades: inverted as a correlation matrix. An
+// indefinite C would give an indefinite prior, and the posterior's scores would be meaningless.
+Matrix6 precision_of(const Vector6& theta, const Matrix6& reference_covariance) {
+  const Matrix6 covariance = positive_semidefinite(reference_covariance);
   Vector6 sigma;
   for (int i = 0; i < kParams; ++i) {
     const double floor = kKnownRelativeSigma * scale_of(theta[i]);

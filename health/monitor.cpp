@@ -106,6 +106,12 @@ HealthMonitor::HealthMonitor(const HealthSettings& settings, const WindowEstimat
   report_.since = 0.0;
 }
 
+// Whether the windows' midpoints span enough for a trend to fit a slope (trend_min_span_s).
+bool HealthMonitor::spans_a_slope(std::span<const WindowEstimate> windows) const {
+  return !windows.empty() && windows.back().midpoint() - windows.front().midpoint() >=
+                                 std::max(settings_.trend_min_span_s, 1e-9);
+}
+
 HealthMonitor::Prediction HealthMonitor::predict(double t, double data_before) const {
   std::vector<WindowEstimate> before;
   const double oldest = data_before - settings_.reference_span_s;
@@ -125,9 +131,7 @@ HealthMonitor::Prediction HealthMonitor::predict(double t, double data_before) c
     p.from_baseline = true;
     return p;
   }
-  const bool slope = before.back().midpoint() - before.front().midpoint() >=
-                     std::max(settings_.trend_min_span_s, 1e-9);
-  p.fit = fit_trend(before, t, slope);
+  p.fit = fit_trend(before, t, spans_a_slope(before));
   p.valid = p.fit.valid;
   return p;
 }
@@ -163,7 +167,7 @@ void HealthMonitor::add_window(const WindowEstimate& w) {
   baseline_th.min_relative_change = settings_.min_relative_change;
   report_.baseline_deviation =
       wald_test(w.theta, w.covariance, baseline_.theta, baseline_.covariance, baseline_th);
-  if (naming_.active && w.t_begin >= naming_.change.onset) name_from_window(w);
+  if (naming_.by_windows && w.t_begin >= naming_.next_window_from) name_from_window(w);
   if (w.t_begin >= segment_start_) test_against_reference(w);
   tested_against_baseline_ = true;
   // A window that straddles a change (the one just found or an earlier one) leaves the trends.
@@ -206,6 +210,7 @@ void HealthMonitor::test_against_reference(const WindowEstimate& w) {
     c.parameters = r.parameters;
     c.onset = window_onset_estimate(w, c.parameter, r.parameters[c.parameter].delta);
     if (p.from_baseline) {
+      stop_naming();
       raise_change(c);  // a change while nothing ran: nothing to tell it from a drift
       return;
     }
@@ -243,9 +248,7 @@ double HealthMonitor::window_onset_estimate(const WindowEstimate& w, int paramet
 DriftReport HealthMonitor::assess_trend(std::span<const WindowEstimate> windows,
                                         const WindowEstimate& latest) const {
   DriftReport d;
-  if (windows.size() < 2 || windows.back().midpoint() - windows.front().midpoint() <
-                                std::max(settings_.trend_min_span_s, 1e-9))
-    return d;
+  if (windows.size() < 2 || !spans_a_slope(windows)) return d;
   const TrendFit fit = fit_trend(windows, latest.midpoint(), true);
   if (!fit.with_slope) return d;
   int free = 0;

@@ -199,6 +199,9 @@ class HealthMonitor {
   void name_block(const ScoreBlock& block);
   void name_from_window(const WindowEstimate& w);
   void raise_name(const ChangePoint& change);
+  void stop_naming() noexcept;
+  TrendFit reference_for_naming(const WindowEstimate& w) const;
+  bool spans_a_slope(std::span<const WindowEstimate> windows) const;
   double naming_start(double onset) const;
   NamingSettings naming_settings() const;
   bool late_drift(int parameter, double& onset);
@@ -259,12 +262,17 @@ class HealthMonitor {
 
   // A fast alarm raised without a name: the residuals go on against the reference it departed
   // from (frozen) until they name the parameter or a window after the onset gives the new
-  // reference (monitor_naming.cpp).
+  // reference; the windows after the onset that share no data name it, until one does or the
+  // reference span has passed (monitor_naming.cpp).
   struct PendingName {
-    bool active = false;
+    bool active = false;  // by the residuals
     ChangePoint change;
     TrendFit reference;
     std::vector<ScoreBlock> blocks;  // since the onset
+    bool by_windows = false;
+    double next_window_from = 0.0;               // s: the next window to try begins here or later
+    std::vector<WindowEstimate> windows_before;  // the reference's windows, before the onset
+    std::vector<WindowEstimate> windows_after;   // those tried, which share no data
   };
   PendingName naming_;
 

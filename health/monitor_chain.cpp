@@ -11,10 +11,15 @@
 // the first onset), the next are counted (`drift_alarms`) and restart the detectors without an
 // event, until the alarms stop for reference_span_s. Two real steps of those parameters within
 // that span are reported as one drift; the false alarms the rule can turn into a drift are the
-// fast and sure detectors' designed rate times reference_span_s.
+// fast and sure detectors' designed rate times reference_span_s. A drift of the mechanical
+// block is named when the trends of θ's scale-free ratios single out one parameter
+// (drift_naming.hpp).
+#include <cmath>
 #include <vector>
 
+#include "health/drift_naming.hpp"
 #include "health/monitor.hpp"
+#include "health/naming.hpp"
 
 namespace scp::health {
 
@@ -40,6 +45,12 @@ bool overlap(const ParameterMask& a, const ParameterMask& b) {
   return false;
 }
 
+bool within_mechanical_block(const ParameterMask& m) {
+  for (int i = kBlockFirst[1]; i < kBlockEnd[1]; ++i)
+    if (m[i]) return false;
+  return true;
+}
+
 }  // namespace
 
 void HealthMonitor::start_chain(const ChangePoint& change) {
@@ -59,14 +70,22 @@ bool HealthMonitor::absorbed_by_chain(const ChangePoint& change) {
   chain_.last_detected = change.detected_at;
   chain_.add(parameters_of(change));
   ++report_.drift_alarms;
+  stop_naming();  // the change it began with is a drift now, not a step to name
   if (!chain_.drift_raised) {
     chain_.drift_raised = true;
     std::vector<WindowEstimate> since;
     for (const auto& w : all_windows_)
       if (w.t_begin >= chain_.first_onset) since.push_back(w);
     const DriftReport trend = since.empty() ? DriftReport{} : assess_trend(since, since.back());
+    std::array<ParameterTrend, kParams> rates = trend.parameters;
+    DriftName name;
+    if (within_mechanical_block(chain_.parameters))
+      name = name_mechanical_drift(since, std::sqrt(kNameMargin));
+    if (name.parameter >= 0 && !chain_.parameters[static_cast<std::size_t>(name.parameter)])
+      name = {};
+    if (name.parameter >= 0) rates[static_cast<std::size_t>(name.parameter)] = name.trend;
     set_state(State::drift, change.detected_at);
-    raise_drift(change.detected_at, trend.parameters, chain_.first_onset, -1, chain_.parameters);
+    raise_drift(change.detected_at, rates, chain_.first_onset, name.parameter, chain_.parameters);
   }
   start_segment(change.onset, change.detected_at);
   return true;

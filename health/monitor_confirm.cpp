@@ -80,6 +80,7 @@ void HealthMonitor::confirm_pending(const WindowEstimate& w) {
     ChangePoint c = candidate;
     c.onset = step.onset;
     c.detected_at = w.t_end;
+    stop_naming();
     raise_change(c);
     return;
   }

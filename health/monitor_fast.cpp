@@ -240,6 +240,12 @@ void HealthMonitor::fast_alarm(const ScoreBlock& block) {
     naming_.blocks.clear();
     for (const auto& b : recent_blocks_)
       if (b.t_begin >= onset) naming_.blocks.push_back(b);
+    naming_.by_windows = true;
+    naming_.next_window_from = onset;
+    naming_.windows_before.clear();
+    naming_.windows_after.clear();
+    for (const auto& w : history_)
+      if (w.t_end <= onset) naming_.windows_before.push_back(w);
   }
   raise_change(c);
 }

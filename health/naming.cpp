@@ -27,9 +27,8 @@ Naming name_in_block(const ProfiledSum& sum, int block, const Vector6& reference
   const double relative =
       reference[b] != 0.0 ? out.best.delta / reference[b] : std::numeric_limits<double>::infinity();
   const double linearization = 0.25 * relative * relative * glr[b];
-  const double m2 = std::max({0.0, std::isfinite(misfit) ? misfit : 0.0, linearization});
-  out.needed = std::isfinite(m2) ? std::pow(std::sqrt(m2) + std::sqrt(settings.margin), 2)
-                                 : std::numeric_limits<double>::infinity();
+  out.needed =
+      needed_gap(std::max(std::isfinite(misfit) ? misfit : 0.0, linearization), settings.margin);
   out.gap = out.runner_up >= 0 ? glr[b] - glr[out.runner_up] : glr[b];
   out.definite = out.gap >= out.needed && std::abs(relative) >= settings.min_relative;
   for (int i = kBlockFirst[block]; i < kBlockEnd[block]; ++i)
@@ -38,6 +37,11 @@ Naming name_in_block(const ProfiledSum& sum, int block, const Vector6& reference
 }
 
 }  // namespace
+
+double needed_gap(double misfit_square, double margin) noexcept {
+  if (!std::isfinite(misfit_square)) return std::numeric_limits<double>::infinity();
+  return std::pow(std::sqrt(std::max(0.0, misfit_square)) + std::sqrt(margin), 2);
+}
 
 Naming name_change(const ProfiledSum& x, const ProfiledSum& tbar, const Vector6& reference,
                    const NamingSettings& settings) noexcept {

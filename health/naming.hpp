@@ -41,6 +41,11 @@ struct Naming {
 // `reference`: the θ the residuals are against. A change below `min_relative` of |θ_i| is never
 // named, nor makes its block the one that moved: at N1's 1e-3 °C a thermal reference error of
 // 1e-5 relative becomes significant in T̄ within a minute (HealthSettings::min_relative_change).
+// (M + z)² with M² = max(0, misfit_square) and z² = margin: the gap a name needs when its best
+// explanation leaves misfit_square beyond the noise (the header's argument; also the refined
+// window's naming, HealthMonitor::name_from_window). Infinite for a non-finite misfit.
+double needed_gap(double misfit_square, double margin) noexcept;
+
 struct NamingSettings {
   double margin = kNameMargin;
   double min_relative = 0.0;

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "health/covariance.hpp"
+
 namespace scp::health {
 
 namespace {
@@ -102,6 +104,9 @@ TrendFit fit_trend(std::span<const WindowEstimate> windows, double t_eval, bool 
       accumulate(fit, slope_variance, w, s, t, k);
     }
   }
+  // Overlapping windows whose weakly determined directions differ make the sandwich indefinite
+  // where the weights extrapolate (two windows 30 s apart predicted 60 s ahead weigh 3 and −2).
+  fit.level_covariance = positive_semidefinite(fit.level_covariance);
   fit.slope_sigma = slope_variance.cwiseMax(0.0).cwiseSqrt();
   return fit;
 }

@@ -38,6 +38,10 @@ struct WindowEstimate {
   double t_end = 0.0;    // s
   Vector6 theta = Vector6::Zero();
   Matrix6 covariance = Matrix6::Zero();
+  // Per block: the fit's validation found structure or colour left in that output's residuals
+  // (a verdict other than adequate). Such a θ̂ is the best constant θ for a window the model does
+  // not describe (a plant drifting within it), and names no change.
+  std::array<bool, kBlocks> misfit{};
 
   double length() const noexcept { return t_end - t_begin; }
   double midpoint() const noexcept { return 0.5 * (t_begin + t_end); }

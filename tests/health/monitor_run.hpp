@@ -18,7 +18,8 @@ struct RunOptions {
   Matrix6 window_covariance = window_covariance_300s();
   std::uint64_t seed = 1;
   double acknowledge_at_s =
-      -1.0;  // the user acknowledges at the first window after it (< 0: never)
+      -1.0;                     // the user acknowledges at the first window after it (< 0: never)
+  double misfit_from_s = -1.0;  // windows that end after it are misfits of the mechanical block
 };
 
 struct RunResult {
@@ -55,6 +56,7 @@ inline RunResult run_monitor(const HealthSettings& settings, const ThetaOfTime& 
       if (!ref.valid) continue;
       monitor.add_block(scores.block(t_block, t_block + settings.block_s, theta(mid), ref.theta));
     }
+    w.misfit[0] = o.misfit_from_s >= 0.0 && w.t_end > o.misfit_from_s;
     monitor.add_window(w);
     if (o.acknowledge_at_s >= 0.0 && w.t_end >= o.acknowledge_at_s && !acknowledged) {
       monitor.acknowledge(w.t_end);

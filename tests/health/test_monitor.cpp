@@ -125,6 +125,47 @@ TEST(HealthMonitor, ADampingStepIsFoundFastAndNamed) {
   }
 }
 
+TEST(HealthMonitor, AChangeNoOneParameterExplainsStaysNamedAsItsSet) {
+  // b/m +10 % and a1/m +15 % at once: the window after the onset departs where no one parameter
+  // explains it, like a drifting plant's misfit windows (one named a1/m for a b/m drift). It
+  // names none, though a1/m explains the departure best by far.
+  const double at = 2400.3;
+  test::RunOptions o;
+  o.duration_s = 3000.0;
+  const test::ThetaOfTime two = [at](double t) {
+    Vector6 th = test::paper_theta();
+    if (t >= at) {
+      th[0] *= 1.10;
+      th[1] *= 1.15;
+    }
+    return th;
+  };
+  for (std::uint64_t seed : {1u, 2u, 3u}) {
+    o.seed = seed;
+    const auto r = test::run_monitor(HealthSettings{}, two, o);
+    ASSERT_EQ(r.changes(), 1) << seed;
+    for (const auto& e : r.events) EXPECT_NE(e.kind, EventKind::named) << seed;
+    EXPECT_EQ(r.report.change.parameter, -1) << seed;
+    EXPECT_TRUE(r.report.change.candidates[0] && r.report.change.candidates[1]) << seed;
+  }
+}
+
+TEST(HealthMonitor, WindowsTheFitFoundMisfitsNameNothing) {
+  // The damping step above, each window after it flagged by the fit's validation (residuals
+  // with structure left, as a plant drifting within its windows leaves): found, never named.
+  const double at = 2400.3;
+  test::RunOptions o;
+  o.duration_s = 3000.0;
+  o.misfit_from_s = at;
+  for (std::uint64_t seed : {1u, 2u}) {
+    o.seed = seed;
+    const auto r = test::run_monitor(HealthSettings{}, step(0, 0.10, at), o);
+    ASSERT_EQ(r.changes(), 1) << seed;
+    for (const auto& e : r.events) EXPECT_NE(e.kind, EventKind::named) << seed;
+    EXPECT_EQ(r.report.change.parameter, -1) << seed;
+  }
+}
+
 TEST(HealthMonitor, AHeatingStepIsNamedByTheFastDetector) {
   // R +10 %: T̄ alone tells θ6 from θ5, within a block or two on these linear blocks; no name
   // before that one, and no other event.

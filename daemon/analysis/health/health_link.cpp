@@ -48,14 +48,16 @@ std::string describe_drift(const scp::health::HealthEvent& event) {
   std::string text;
   for (std::size_t i = 0; i < event.trend.size(); ++i) {
     if (!event.trend[i].drifting) continue;
-    text += (text.empty() ? ": " : ", ") + std::string(kParameterNames[i]) + " " +
+    text += (text.empty() ? "" : ", ") + std::string(kParameterNames[i]) + " " +
             percent(event.trend[i].relative_per_hour) + "/h";
   }
   const std::string set = candidate_list(event.change.candidates);
-  if (!text.empty() || set.empty()) return text;
-  char head[96];
-  std::snprintf(head, sizeof(head), " (changing since %.1f s): one of ", event.change.onset);
-  return head + set;
+  if (set.empty()) return text.empty() ? text : ": " + text;
+  // A drift that continues a change (monitor_chain.cpp) says since when, and what it may be
+  // when its rate names no parameter.
+  char head[64];
+  std::snprintf(head, sizeof(head), " (changing since %.1f s): ", event.change.onset);
+  return head + (text.empty() ? "one of " + set : text);
 }
 
 }  // namespace

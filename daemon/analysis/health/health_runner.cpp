@@ -138,6 +138,8 @@ void HealthRunner::on_fit(const scp::refine::FitResult& fit,
     w.t_end = fit.t_end;
     w.theta = fit.theta;
     w.covariance = fit.covariance;
+    w.misfit = {fit.validated && fit.validation.mechanical.verdict != Verdict::kAdequate,
+                fit.validated && fit.validation.thermal.verdict != Verdict::kAdequate};
     monitor_->add_window(w);
     view_.last_window_unix_ns = wall_ns;
     seed(fit, window);
