@@ -19,6 +19,7 @@
 #include "refine/heater_power.hpp"
 #include "refine/interval_averaging.hpp"
 #include "refine/stages.hpp"
+#include "refine/switch_placement.hpp"
 #include "refine/voltage_timing.hpp"
 #include "refine/warm_start.hpp"
 
@@ -197,16 +198,59 @@ FitResult fit_prepared(std::span<const WindowSample> window, const Vector6& thet
                                             : fit_staged(window, theta_start, settings);
 }
 
-// The staged fit of the window read under `interval`, its switches at `switches`.
+// Rounds of placing the switches and fitting θ again (refine/switch_placement.hpp): the first only
+// where the data ask for a phase per switch (Schwarz's criterion), the others until a step would
+// take less than kSettledDecrease off the weighted cost (χ²: within the noise). The step profiles
+// θ out, but its linear model is approximate (x follows T̄ statically), so θ's refit and another
+// step take what one step left.
+constexpr int kPlacementRounds = 6;
+constexpr double kSettledDecrease = 1.0;
+
+// The fit of `prepared` (held at one phase, `fitted` its fit) with each switch placed in its
+// interval by the fitted model's residuals, alternated with the fit of θ from where it got.
+FitResult fit_with_placed_switches(std::span<WindowSample> prepared, const FitSettings& settings,
+                                   FitResult fitted) {
+  FitSettings refit = settings;
+  refit.search_scale = false;  // θ1..θ4's common scale is the fitted one's
+  int iterations = 0, evaluations = 0;
+  for (int round = 0; round < kPlacementRounds && fitted.validated; ++round) {
+    const SwitchPlacement placed =
+        place_voltage_switches(prepared, fitted, settings.known,
+                               round == 0 ? PlacementStep::needs_evidence : PlacementStep::follows);
+    if (placed.placed == 0) break;
+    fitted.voltage_switches.placed = placed.placed;
+    fitted.voltage_switches.rms_phase_sigma = placed.rms_phase_sigma;
+    if (!(placed.decrease >= kSettledDecrease)) break;
+    iterations += fitted.iterations;
+    evaluations += fitted.evaluations;
+    FitResult next = fit_prepared(prepared, fitted.theta, refit);
+    if (!next.validated) break;  // the fit of the last phases that ran to its verdict stands
+    next.voltage_switches = fitted.voltage_switches;
+    fitted = std::move(next);
+  }
+  fitted.iterations += iterations;
+  fitted.evaluations += evaluations;
+  return fitted;
+}
+
+bool places_switches(const FitSettings& settings, const SwitchPhase& switches) {
+  return switches.count > 0 && settings.voltage_hold == estimator::VoltageHold::foh &&
+         settings.voltage_shape == VoltageShape::smooth;
+}
+
+// The staged fit of the window read under `interval`, its switches at `switches` and then, where
+// it has any, each where the residuals place it.
 FitResult fit_under(std::span<const WindowSample> window, const Vector6& theta_start,
                     const FitSettings& settings, VoltageInterval interval,
                     const SwitchPhase& switches) {
   std::vector<WindowSample> storage;
-  FitResult result = fit_prepared(prepare_window(window, settings.voltage_hold, interval, storage,
-                                                 settings.voltage_shape, switches.phase),
-                                  theta_start, settings);
-  result.voltage_interval = interval;
+  const std::span<const WindowSample> prepared = prepare_window(
+      window, settings.voltage_hold, interval, storage, settings.voltage_shape, switches.phase);
+  FitResult result = fit_prepared(prepared, theta_start, settings);
   result.voltage_switches = switches;
+  if (places_switches(settings, switches) && prepared.data() == storage.data())
+    result = fit_with_placed_switches(storage, settings, std::move(result));
+  result.voltage_interval = interval;
   return result;
 }
 

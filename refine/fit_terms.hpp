@@ -57,9 +57,13 @@ inline constexpr double kEquivalentThetaShift = 0.25;
 // A smooth voltage's switches (refine/voltage_timing.hpp, hold_voltage_switches): how many a
 // window has and where in their intervals the fit put them (0: just after the previous sample, 1:
 // at the row's own instant).
+// `placed`: how many of them the fit then placed each in its own interval, from its residuals
+// (refine/switch_placement.hpp), and their phases' RMS standard deviation (in intervals).
 struct SwitchPhase {
   std::size_t count = 0;
   double phase = 0.0;
+  std::size_t placed = 0;
+  double rms_phase_sigma = 0.0;
 };
 
 // How a voltage read with a first-order hold (estimator::VoltageHold::foh) varied between the

@@ -1,8 +1,7 @@
 #include "refine/validate_fit.hpp"
 
+#include "refine/fitted_sweep.hpp"
 #include "refine/model_simulator.hpp"
-#include "refine/sensitivities.hpp"
-#include "refine/sensor_lag.hpp"
 
 namespace scp::refine {
 
@@ -60,53 +59,24 @@ ValidationSettings validation_settings(std::span<const WindowSample> window, con
 
 ValidationReport validate_fit(std::span<const WindowSample> window, const FitResult& fit,
                               ValidationSettings settings, const std::array<bool, 6>& known) {
-  FreeMask free = free_slots(known);
-  free[kXZeroSlot] = fit.nuisance.x_zero.estimated;
-  free[kAmbientOffsetSlot] = fit.nuisance.ambient_offset.estimated;
-  free[kAmbientDriftSlot] = fit.nuisance.ambient_drift.estimated;
-  free[kSensorLagSlot] = fit.nuisance.sensor_lag.estimated;
-  Tempcos tc;
-  double* const coefficient[] = {&tc.rho, &tc.kappa, &tc.gamma};
-  bool extended = false;
-  for (std::size_t i = 0; i < kExtensionTable.size(); ++i) {
-    const ExtensionEstimate& e = fit.extensions.*kExtensionTable[i].estimate;
-    free[kExtensionTable[i].slot] = e.kept;
-    *coefficient[i] = e.kept ? e.value : 0.0;
-    extended = extended || e.kept;
-  }
   settings = validation_settings(
-      window, fit.theta, free, settings,
+      window, fit.theta, fitted_slots(fit, known), settings,
       AmbientError{fit.nuisance.ambient_offset.value, fit.nuisance.ambient_drift.value});
-  if (window.empty()) return ResidualValidator(fit.theta, settings).finish();
   ResidualValidator validator(fit.theta, settings);
-  SensitivitySimulator sim(fit.theta, fit.initial_state, false, tc, extended);
-  SensorLag lag(fit.nuisance.sensor_lag.value);
-  lag.start(sim.state().tbar, &sim.dtbar());
-  for (std::size_t k = 0; k < window.size(); ++k) {
-    double u = window[k].voltage * window[k].voltage;
-    if (k > 0) {
-      sim.advance(window[k - 1], window[k], fit.input_delay_s);
-      u = mean_square_voltage(window[k - 1], window[k], fit.input_delay_s);
-      lag.advance(window[k].t - window[k - 1].t, sim.state().tbar, &sim.dtbar());
-    }
-    ParamVector jx = sim.dx(), jt = lag.sensitivities();
-    const double since = window[k].t - window.front().t;
-    jx[kXZeroSlot] = 1.0;
-    jt[kAmbientOffsetSlot] = 1.0;
-    jt[kAmbientDriftSlot] = since;
+  sweep_fitted_model(window, fit, [&](const FittedSample& f) {
+    const WindowSample& w = window[f.k];
     ValidationSample s;
-    s.t = window[k].t;
-    s.x = window[k].x;
-    s.x_model = sim.state().x + fit.nuisance.x_zero.value;
-    s.tbar = window[k].tbar;
-    s.tbar_model = lag.reading() + fit.nuisance.ambient_offset.value +
-                   fit.nuisance.ambient_drift.value * since;
-    s.thermal_input = u;
-    s.mechanical_input = sim.state().tbar;
-    s.jacobian_x = std::span<const double>(jx.data(), kParams);
-    s.jacobian_tbar = std::span<const double>(jt.data(), kParams);
+    s.t = w.t;
+    s.x = w.x;
+    s.x_model = f.x_model;
+    s.tbar = w.tbar;
+    s.tbar_model = f.tbar_model;
+    s.thermal_input = f.thermal_input;
+    s.mechanical_input = f.state->tbar;
+    s.jacobian_x = std::span<const double>(f.jx->data(), kParams);
+    s.jacobian_tbar = std::span<const double>(f.jt->data(), kParams);
     validator.add(s);
-  }
+  });
   return validator.finish();
 }
 

@@ -417,8 +417,9 @@ void declare_refine_bench(Binder& refine, RefineSettings& out) {
                 "with estimator.voltage_hold foh, how the voltage varied between the rows: "
                 "`smooth` (a continuous drive sampled at the rows: V² from the cubic through four "
                 "rows, and a switch of a PRBS or step held from the place in its interval that "
-                "fits T̄ best, refined.voltage_switches) or `linear` (a DAC ramping from one "
-                "command to the next)");
+                "fits T̄ best, then each switch placed from the residuals where the data ask for "
+                "it, refined.voltage_switches) or `linear` (a DAC ramping from one command to the "
+                "next)");
   Binder nuisance = refine.section("nuisance",
                                    "nuisance terms of a real bench, estimated beside θ unless "
                                    "held at a declared value (published in refined.nuisance)");

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <stdexcept>
 
 namespace scp::tools::benchsim {
 
@@ -17,13 +18,32 @@ excitation::ExcitationSettings prbs_only(const excitation::ExcitationSettings& s
   return bits;
 }
 
+GeneratorClock checked(GeneratorClock clock) {
+  if (!(std::abs(clock.rate_error) <= 1e-3)) {
+    throw std::invalid_argument("the generator clock's rate error must be within ±1000 ppm");
+  }
+  if (!(std::isfinite(clock.offset_s) && clock.offset_s >= 0.0)) {
+    throw std::invalid_argument("the generator clock's offset must be a time >= 0 s");
+  }
+  return clock;
+}
+
 }  // namespace
 
-AnalogVoltage::AnalogVoltage(const excitation::ExcitationSettings& settings)
-    : settings_((excitation::validate(settings), settings)), bits_(prbs_only(settings)) {}
+AnalogVoltage::AnalogVoltage(const excitation::ExcitationSettings& settings, GeneratorClock clock)
+    : settings_((excitation::validate(settings), settings)),
+      clock_(checked(clock)),
+      bits_(prbs_only(settings)) {}
 
-double AnalogVoltage::at(double t, double level_time) const noexcept {
+// The DAQ's clock itself gives back t exactly, so the default clock writes the files it always did.
+double AnalogVoltage::generator_time(double t) const noexcept {
+  return t * (1.0 + clock_.rate_error) + clock_.offset_s;
+}
+
+double AnalogVoltage::at(double daq_t, double daq_level_time) const noexcept {
   // The same terms in the same order as Excitation::voltage, so at(t, t) is bit for bit its value.
+  const double t = generator_time(daq_t);
+  const double level_time = generator_time(daq_level_time);
   double v = settings_.offset;
   for (const excitation::Sine& w : settings_.sines) {
     v += w.amplitude * std::sin(2.0 * std::numbers::pi * w.frequency_hz * t + w.phase_rad);
@@ -37,7 +57,8 @@ double AnalogVoltage::at(double t, double level_time) const noexcept {
   return std::clamp(v, 0.0, settings_.v_max);
 }
 
-double AnalogVoltage::next_switch_after(double t) const noexcept {
+double AnalogVoltage::next_switch_after(double daq_t) const noexcept {
+  const double t = generator_time(daq_t);
   double next = std::numeric_limits<double>::infinity();
   for (const excitation::Step& st : settings_.steps) {
     if (st.time_s > t) next = std::min(next, st.time_s);
@@ -48,7 +69,8 @@ double AnalogVoltage::next_switch_after(double t) const noexcept {
     if (edge <= t) edge += bit;  // t/bit rounded up to a whole number
     next = std::min(next, edge);
   }
-  return next;
+  if (!std::isfinite(next)) return next;
+  return (next - clock_.offset_s) / (1.0 + clock_.rate_error);
 }
 
 }  // namespace scp::tools::benchsim

@@ -75,6 +75,10 @@ void describe(const BenchFile& f, std::ostream& out) {
       << (f.excite ? "" : " (excitation off: 0 V)") << "; integrator: RK4 on x, xdot, Tbar"
       << (d.temperature_lag_s > 0 ? " and the T sensor" : "") << " together, " << f.sim.substeps
       << " sub-steps per ms, cut at every switch of V\n";
+  if (f.clock.rate_error != 0.0 || f.clock.offset_s != 0.0) {
+    out << "# the voltage source's clock: rate error " << text(f.clock.rate_error * 1e6)
+        << " ppm against the DAQ's, offset " << text(f.clock.offset_s) << " s\n";
+  }
 }
 
 // Advances `plant` over one period and returns the voltage applied just before its end.
@@ -192,7 +196,7 @@ BenchFile default_bench_file() {
 
 void write_bench_file(const BenchFile& f, std::ostream& out) {
   const long long rows = validate(f);
-  const AnalogVoltage voltage(f.excite ? f.excitation : zero_volts());
+  const AnalogVoltage voltage(f.excite ? f.excitation : zero_volts(), f.clock);
   const Stepper stepper(f, voltage);
   Plant plant(f.sim.plant, f.sim.substeps, f.sim.drift, f.sim.deviations);
   drivers::sim::Sensors sensors(f.sim);

@@ -11,6 +11,7 @@
 
 #include "drivers/sim/sim_settings.hpp"
 #include "excitation/excitation_settings.hpp"
+#include "tools/benchsim/analog_voltage.hpp"
 
 namespace scp::tools::benchsim {
 
@@ -43,6 +44,7 @@ struct BenchFile {
   excitation::ExcitationSettings excitation;  // the paper's four sines by default
   bool excite = true;                         // false: 0 V throughout
   VoltageTiming timing = VoltageTiming::continuous;
+  GeneratorClock clock;  // the source's clock; the DAQ's by default (switches on the rows)
   double duration_s = 300.0;
   double period_s = 1e-3;  // rows at t = k·period_s, k = 0 .. duration_s/period_s
 };

@@ -21,6 +21,7 @@ using scp::tools::benchsim::BenchFile;
 
 struct Options {
   std::string out, config, voltage = "continuous", noise = "N0";
+  double generator_ppm = 0.0;
   double noise_x = -1, noise_xdot = -1, noise_temperature = -1;
   bool no_xdot = false;
 };
@@ -121,6 +122,13 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"continuous", "dac-before", "dac-after"}));
   app.add_option("--substeps", f.sim.substeps, "RK4 sub-steps per ms (default 20)")
       ->check(CLI::Range(1, 100000));
+  app.add_option("--generator-clock-ppm", o.generator_ppm,
+                 "the voltage source's clock rate error against the DAQ's, ppm: its steps and "
+                 "bits then switch at every place between two rows in turn (default 0: on rows)")
+      ->check(CLI::Range(-1000.0, 1000.0));
+  app.add_option("--generator-clock-offset", f.clock.offset_s,
+                 "the source's time at the first row, s (default 0)")
+      ->check(CLI::Range(0.0, 1e7));
   add_deviation_options(app, f);
   add_sensor_options(app, f, o);
   CLI11_PARSE(app, argc, argv);
@@ -128,6 +136,7 @@ int main(int argc, char** argv) {
   try {
     if (!o.config.empty()) apply_config(o.config, f);
     f.timing = scp::tools::benchsim::parse_voltage_timing(o.voltage);
+    f.clock.rate_error = o.generator_ppm * 1e-6;
     scp::tools::benchsim::apply_noise_level(o.noise, f.sim);
     if (o.noise_x >= 0) f.sim.noise_x = o.noise_x;
     if (o.noise_xdot >= 0) f.sim.noise_xdot = o.noise_xdot;

@@ -170,14 +170,20 @@ void put_bench_terms(json& o, const refine::RefinedView& r) {
 }
 
 // "voltage_interval" (before, after, or undetermined where the data could not tell and θ depends
-// on it), a smooth voltage's "voltage_switches" where it has any, and, when the fit estimated the
+// on it), a smooth voltage's "voltage_switches" where it has any (with how many the fit placed
+// each in its own interval, and their phases' RMS σ), and, when the fit estimated the
 // interval, "voltage_interval_test": what it fitted with and the criterion's evidence.
 void put_voltage_interval(json& o, const refine::RefinedView& r) {
   const bool undetermined = refine::interval_undetermined(r);
   o["voltage_interval"] = undetermined ? "undetermined" : scp::refine::to_text(r.voltage_interval);
-  if (r.voltage_switches.count > 0)
-    o["voltage_switches"] = {{"count", r.voltage_switches.count},
-                             {"phase", r.voltage_switches.phase}};
+  if (r.voltage_switches.count > 0) {
+    json switches = {{"count", r.voltage_switches.count}, {"phase", r.voltage_switches.phase}};
+    if (r.voltage_switches.placed > 0) {
+      switches["placed"] = r.voltage_switches.placed;
+      put_finite(switches, "phase_sigma", r.voltage_switches.rms_phase_sigma);
+    }
+    o["voltage_switches"] = switches;
+  }
   const scp::refine::IntervalEvidence& e = r.voltage_interval_evidence;
   if (!e.estimated) return;
   json test = {{"fitted", scp::refine::to_text(r.voltage_interval)}, {"determined", e.determined}};

@@ -24,7 +24,8 @@ inline constexpr int kProtoMajor = 1;
 // health-ack, baseline-show, baseline-save, baseline-clear (issue 30; docs/protocol.md).
 // 1.9: refined.voltage_interval `undetermined` and refined.voltage_interval_test (issue 28).
 // 1.11: refined.voltage_switches (a smooth voltage's switches and their phase, issue 28).
-inline constexpr int kProtoMinor = 12;
+// 1.13: refined.voltage_switches.placed and phase_sigma (switches placed one by one, issue 28).
+inline constexpr int kProtoMinor = 13;
 
 std::string render_version(std::string_view release);
 std::string render_error(std::string_view message);

@@ -1,0 +1,62 @@
+#pragma once
+// Where in its interval each switch of a smooth voltage fell, from the fit's residuals.
+//
+// hold_voltage_switches (refine/voltage_switches.hpp) puts every switch at one phase, which fits a
+// generator on the DAQ's clock. A generator on a clock of its own (a crystal tens of ppm off the
+// DAQ's) puts each switch somewhere else between two rows, and a switch a fraction δ of its
+// interval Δ later than modelled moves θ6·(A² − B²)·δ·Δ of heat: a step in T̄ that lasts the
+// thermal time constant, and through the thermal force a step in x. Over 1 s bits of a few volts
+// that is several times N1's noise, seconds long, at every switch.
+//
+// Each switch's step is the thermal block's impulse response, the same for every δ, so the phases
+// are a linear least-squares problem on the residuals of a fitted model: the columns are the model
+// linearised about its trajectory (T̄'s decay at the local cooling and heating slopes, the
+// sensor's lag, x following T̄ at the mechanical block's static gain: its poles are milliseconds,
+// T̄'s seconds), weighted by the channels' noise. θ is not held: a shift of every switch together
+// trades with θ1..θ4's common scale (a sub-millisecond lag between heating and motion), so the
+// step is Gauss–Newton's for the phases with the fit's free slots profiled out (the Schur
+// complement of their information, which one forward sweep of the fitted model's sensitivities
+// gives), and the fit is then made again at the new phases. The normal equations are solved by
+// conjugate gradients, whose products are one forward and one adjoint sweep of the linear model.
+// Each phase has the prior of a switch anywhere in its interval (variance 1/12 about where it
+// is), so a switch the data cannot place stays put.
+// refine/fit.cpp alternates this with the fit of θ.
+
+#include <array>
+#include <cstddef>
+#include <span>
+
+#include "refine/fit.hpp"
+
+namespace scp::refine {
+
+struct SwitchPlacement {
+  std::size_t placed = 0;        // switch rows whose phase was moved
+  double largest_move = 0.0;     // the largest change of a phase, in intervals
+  double rms_phase_sigma = 0.0;  // the phases' RMS standard deviation, in intervals
+  // The weighted cost the step takes off (Gauss–Newton's prediction, bᵀδ) and what Schwarz's
+  // criterion charges the phases for it (ln n each): with FirstStep::needs_evidence, a step that
+  // takes off less moves nothing (placed = 0): one phase for all switches fits as well.
+  double decrease = 0.0;
+  double price = 0.0;
+};
+
+// The first step of a fit decides whether the switches need a phase each; the later ones follow.
+enum class PlacementStep : bool { needs_evidence, follows };
+
+// Moves voltage_since of every switch row of `prepared` (a foh, smooth window after
+// prepare_window: the rows hold_voltage_switches held, which `fit` fitted; `known` its fixed θ) to
+// where the fit's residuals place it, within its interval. Allocates O(samples); leaves `prepared`
+// as it was when it has no switch, more than kMostPlacedSwitches, the step is not finite, or (the
+// first step) the data do not ask for it.
+SwitchPlacement place_voltage_switches(std::span<WindowSample> prepared, const FitResult& fit,
+                                       const std::array<bool, 6>& known, PlacementStep step);
+
+// The phases' prior: a switch anywhere in its interval, variance 1/12.
+inline constexpr double kSwitchPhasePriorPrecision = 12.0;
+// More switches than this are left where they are: each column of the preconditioner is followed
+// for the thermal time constant, and a drive switching every few periods gives each switch too
+// little heat to place (its phases' errors average out instead).
+inline constexpr std::size_t kMostPlacedSwitches = 4000;
+
+}  // namespace scp::refine
