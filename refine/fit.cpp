@@ -230,6 +230,9 @@ FitResult fit_with_placed_switches(std::span<WindowSample> prepared, const FitSe
   }
   fitted.iterations += iterations;
   fitted.evaluations += evaluations;
+  // σ counts the phases as the unknowns they are.
+  if (fitted.voltage_switches.placed > 0 && fitted.validated)
+    add_covariance_share(fitted, placed_switches_covariance(prepared, fitted, settings.known));
   return fitted;
 }
 

@@ -26,9 +26,13 @@ Matrix6 interval_covariance(const FitResult& a, const FitResult& b, double stati
   return w * (1.0 - w) * d * d.transpose();
 }
 
-void add_interval_covariance(FitResult& r, const Matrix6& share) {
+void add_covariance_share(FitResult& r, const Matrix6& share) {
   r.covariance += share;
   for (int i = 0; i < 6; ++i) r.sigma[i] = std::sqrt(r.sigma[i] * r.sigma[i] + share(i, i));
+}
+
+void add_interval_covariance(FitResult& r, const Matrix6& share) {
+  add_covariance_share(r, share);
   r.interval_covariance = share;
 }
 

@@ -21,4 +21,7 @@ Matrix6 interval_covariance(const FitResult& a, const FitResult& b, double stati
 // `r`'s covariance and σ with `share` added, and `share` kept as r.interval_covariance.
 void add_interval_covariance(FitResult& r, const Matrix6& share);
 
+// `r`'s covariance and σ with `share` added: what another unknown estimated beside θ adds.
+void add_covariance_share(FitResult& r, const Matrix6& share);
+
 }  // namespace scp::refine

@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <vector>
 
 #include "refine/fitted_sweep.hpp"
@@ -254,22 +255,54 @@ Eigen::VectorXd conjugate_gradients(ProfiledNormal& op, const Eigen::VectorXd& b
   return x;
 }
 
+// The sweep, the profiled operator and its preconditioner of one placement, or nothing.
+struct Placement {
+  Sweep sweep;
+  std::unique_ptr<ProfiledNormal> op;
+  Eigen::VectorXd diagonal;
+};
+
+bool prepare_placement(std::span<const WindowSample> prepared, const FitResult& fit,
+                       const std::array<bool, 6>& known, Placement& out) {
+  if (prepared.size() < 3 || !(fit.noise_sigma.array() > 0.0).all()) return false;
+  out.sweep = sweep(prepared, fit, known);
+  const Sweep& s = out.sweep;
+  if (s.switches.empty() || s.switches.size() > kMostPlacedSwitches) return false;
+  if (!s.cross.allFinite() || !s.slots.allFinite() || !s.diagonal.allFinite()) return false;
+  out.op = std::make_unique<ProfiledNormal>(s, prepared.size());
+  if (!out.op->ok()) return false;
+  out.diagonal = out.op->diagonal();
+  return true;
+}
+
 }  // namespace
+
+Matrix6 placed_switches_covariance(std::span<const WindowSample> prepared, const FitResult& fit,
+                                   const std::array<bool, 6>& known) {
+  Placement p;
+  if (!prepare_placement(prepared, fit, known, p)) return Matrix6::Zero();
+  // G = C A⁻¹ over θ's columns; the share is Gᵀ S⁻¹ G.
+  Eigen::Matrix<double, Eigen::Dynamic, 6> g(p.sweep.cross.rows(), 6);
+  for (int j = 0; j < 6; ++j) g.col(j) = p.sweep.cross * p.op->slots_solve(ParamVector::Unit(j));
+  Eigen::Matrix<double, Eigen::Dynamic, 6> solved(g.rows(), 6);
+  for (int j = 0; j < 6; ++j) solved.col(j) = conjugate_gradients(*p.op, g.col(j), p.diagonal);
+  Matrix6 share = g.transpose() * solved;
+  share = 0.5 * (share + share.transpose()).eval();
+  if (!share.allFinite()) return Matrix6::Zero();
+  return share;
+}
 
 SwitchPlacement place_voltage_switches(std::span<WindowSample> prepared, const FitResult& fit,
                                        const std::array<bool, 6>& known, PlacementStep step) {
   SwitchPlacement out;
-  if (prepared.size() < 3 || !(fit.noise_sigma.array() > 0.0).all()) return out;
-  const Sweep s = sweep(prepared, fit, known);
-  if (s.switches.empty() || s.switches.size() > kMostPlacedSwitches) return out;
-  if (!s.cross.allFinite() || !s.slots.allFinite() || !s.diagonal.allFinite()) return out;
-  ProfiledNormal op(s, prepared.size());
-  if (!op.ok()) return out;
+  Placement p;
+  if (!prepare_placement(prepared, fit, known, p)) return out;
+  const Sweep& s = p.sweep;
+  const Eigen::VectorXd& diagonal = p.diagonal;
   // The score of the phases with the slots' own score profiled out (0 at a converged fit).
   const Eigen::VectorXd b =
-      adjoint(s.model, s.switches, s.wrt, s.wrx) - s.cross * op.slots_solve(s.slots_score);
-  const Eigen::VectorXd diagonal = op.diagonal();
-  const Eigen::VectorXd delta = conjugate_gradients(op, b, diagonal);
+      adjoint(s.model, s.switches, s.wrt, s.wrx) - s.cross * p.op->slots_solve(s.slots_score);
+  const Eigen::VectorXd delta = conjugate_gradients(*p.op, b, diagonal);
   if (!delta.allFinite()) return out;
   out.decrease = b.dot(delta);
   out.price =

@@ -52,6 +52,14 @@ enum class PlacementStep : bool { needs_evidence, follows };
 SwitchPlacement place_voltage_switches(std::span<WindowSample> prepared, const FitResult& fit,
                                        const std::array<bool, 6>& known, PlacementStep step);
 
+// What the placed phases add to θ's covariance. They are unknowns estimated beside θ, so θ's
+// covariance is the free slots' block of (A − Cᵀ N⁻¹ C)⁻¹ = A⁻¹ + A⁻¹Cᵀ S⁻¹ C A⁻¹ (A = JᵀWJ of
+// the free slots, C = HᵀWJ, N the phases' information with their prior, S = N − C A⁻¹ Cᵀ); this is
+// the second term's θ block, at `fit` on `prepared` as it placed them. Zero where nothing is
+// placed.
+Matrix6 placed_switches_covariance(std::span<const WindowSample> prepared, const FitResult& fit,
+                                   const std::array<bool, 6>& known);
+
 // The phases' prior: a switch anywhere in its interval, variance 1/12.
 inline constexpr double kSwitchPhasePriorPrecision = 12.0;
 // More switches than this are left where they are: each column of the preconditioner is followed
