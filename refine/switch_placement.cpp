@@ -89,6 +89,29 @@ class ActiveColumns {
   std::vector<Column> active_;
 };
 
+// The rows a foh window holds (hold_voltage_switches' switches), at their phases; heat unset.
+std::vector<Switch> switch_rows(std::span<const WindowSample> w) {
+  std::vector<Switch> out;
+  for (std::size_t k = 1; k < w.size(); ++k) {
+    const double dt = w[k].t - w[k - 1].t;
+    if (w[k].voltage_ramp || !(dt > 0.0)) continue;
+    out.push_back({k, std::clamp((w[k].voltage_since - w[k - 1].t) / dt, 0.0, 1.0), 0.0});
+  }
+  return out;
+}
+
+// A linear model of n samples that passes a perturbation on unchanged, the channels weighted by
+// the noise σ (x, T̄).
+LinearModel unit_model(std::size_t n, const Vector2& noise_sigma) {
+  LinearModel m;
+  m.decay.assign(n, 1.0);
+  m.lag.assign(n, 0.0);
+  m.x_gain.assign(n, 0.0);
+  m.wx = 1.0 / (noise_sigma[0] * noise_sigma[0]);
+  m.wt = 1.0 / (noise_sigma[1] * noise_sigma[1]);
+  return m;
+}
+
 Sweep sweep(std::span<const WindowSample> w, const FitResult& fit,
             const std::array<bool, 6>& known) {
   const Tempcos tc = fitted_tempcos(fit);
@@ -96,19 +119,10 @@ Sweep sweep(std::span<const WindowSample> w, const FitResult& fit,
   const double sensor_lag = fit.nuisance.sensor_lag.value;
   Sweep out;
   LinearModel& m = out.model;
-  m.decay.assign(w.size(), 1.0);
-  m.lag.assign(w.size(), 0.0);
-  m.x_gain.assign(w.size(), 0.0);
-  m.wx = 1.0 / (fit.noise_sigma[0] * fit.noise_sigma[0]);
-  m.wt = 1.0 / (fit.noise_sigma[1] * fit.noise_sigma[1]);
+  m = unit_model(w.size(), fit.noise_sigma);
   out.wrt.assign(w.size(), 0.0);
   out.wrx.assign(w.size(), 0.0);
-  for (std::size_t k = 1; k < w.size(); ++k) {
-    const double dt = w[k].t - w[k - 1].t;
-    if (w[k].voltage_ramp || !(dt > 0.0)) continue;
-    const double phase = std::clamp((w[k].voltage_since - w[k - 1].t) / dt, 0.0, 1.0);
-    out.switches.push_back({k, phase, 0.0});
-  }
+  out.switches = switch_rows(w);
   out.diagonal = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(out.switches.size()));
   out.cross = SwitchMatrix::Zero(static_cast<Eigen::Index>(out.switches.size()), kParams);
   if (out.switches.empty() || out.switches.size() > kMostPlacedSwitches) return out;
