@@ -31,7 +31,7 @@
 namespace scp::refine {
 
 struct SwitchPlacement {
-  std::size_t placed = 0;        // switch rows whose phase was moved
+  std::size_t placed = 0;        // switch rows given a phase of their own (all, or none)
   double largest_move = 0.0;     // the largest change of a phase, in intervals
   double rms_phase_sigma = 0.0;  // the phases' RMS standard deviation, in intervals
   // The weighted cost the step takes off (Gauss–Newton's prediction, bᵀδ) and what Schwarz's
