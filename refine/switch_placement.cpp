@@ -66,7 +66,7 @@ class ActiveColumns {
     std::size_t kept = 0;
     for (Column& c : active_) {
       const bool first = switches[c.index].row == k;
-      c.d = (first ? 0.0 : m.decay[k] * c.d) + (first ? c.heat : 0.0);
+      c.d = first ? c.heat : m.decay[k] * c.d;
       c.y = m.lag[k] * c.y + (1.0 - m.lag[k]) * c.d;
       const double x = m.x_gain[k] * c.d;
       diagonal[static_cast<Eigen::Index>(c.index)] += m.wt * c.y * c.y + m.wx * x * x;
