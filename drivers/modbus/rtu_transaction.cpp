@@ -127,11 +127,24 @@ int RtuTransaction::send_frame(int unit, const std::uint8_t* pdu, int pdu_len) n
   frame[pdu_len + 1] = static_cast<std::uint8_t>(crc & 0xFF);
   frame[pdu_len + 2] = static_cast<std::uint8_t>(crc >> 8);
   const int total = pdu_len + 3;
+  request_chars_ = total;
   sent_ns_ = clock::monotonic_ns();
   if (const int err = send_frame_bytes(fd_, frame.data(), total, false); err != 0) return err;
   // The port sends the frame from now on: the line carries it for total characters.
   line_busy_until_ns_ = sent_ns_ + total * char_ns_;
   return 0;
+}
+
+void RtuTransaction::discard_unsent_request() noexcept {
+  // What the port has not sent of an unanswered request would be answered into this one's wait.
+  tcflush(fd_, TCOFLUSH);
+  unanswered_ = false;
+  // What the flush could no longer reach may have left as late as the flush's end (a pty's tty
+  // worker, preempted while it held the port's buffer, delivers it and only then lets the flush
+  // run): the next request keeps the silence after that request's wire time, or the two reach
+  // the line as one frame.
+  line_busy_until_ns_ =
+      std::max(line_busy_until_ns_, clock::monotonic_ns() + request_chars_ * char_ns_);
 }
 
 int RtuTransaction::judge_frame(int unit, int function) noexcept {
@@ -190,9 +203,7 @@ int RtuTransaction::transact(int unit, const std::uint8_t* pdu, int pdu_len, Pdu
   if (pdu_len < 1 || pdu_len > kMaxPdu) return EINVAL;
   const auto timeout_ns = static_cast<std::int64_t>(timeout_s * 1e9);
   sent_ns_ = received_ns_ = 0;
-  // What the port has not sent of an unanswered request would be answered into this one's wait.
-  if (unanswered_) tcflush(fd_, TCOFLUSH);
-  unanswered_ = false;
+  if (unanswered_) discard_unsent_request();
   const std::int64_t silent_by = std::min(clock::monotonic_ns() + timeout_ns, not_after_ns);
   if (const int err = await_silence(silent_by); err != 0) return err;
   if (const int err = send_frame(unit, pdu, pdu_len); err != 0) {

@@ -15,7 +15,9 @@
 // - Without any flush, a request the port did not send in time still goes out later: on a loaded
 //   machine the tty layer held a pty's output for many cycles, and their requests then left at
 //   once, each answered into a later transaction's wait. So after a request that got no answer,
-//   the port's unsent output is discarded (tcflush TCOFLUSH) before the next one.
+//   the port's unsent output is discarded (tcflush TCOFLUSH) before the next one, and the next
+//   one waits for the silence as if the request had left when the flush returned (what the flush
+//   could not reach may have left as late as that).
 // Here a transaction is: wait until the line has been silent for t3.5 (discarding whatever
 // arrives meanwhile: the rest of a late reply), send the request, collect the reply until its
 // length (known from its function code and byte count) is complete, check its CRC and unit. One
@@ -79,6 +81,8 @@ class RtuTransaction {
   // deadline, or an errno.
   int await_silence(std::int64_t deadline_ns) noexcept;
   int send_frame(int unit, const std::uint8_t* pdu, int pdu_len) noexcept;
+  // Discards the port's unsent output after a request that got no answer.
+  void discard_unsent_request() noexcept;
   // Collects the reply: its first byte by `first_byte_by_ns`, each later one within
   // `byte_gap_ns` of the one before, all of it by `not_after_ns`.
   int receive_frame(int unit, int function, std::int64_t first_byte_by_ns, std::int64_t byte_gap_ns,
@@ -96,6 +100,8 @@ class RtuTransaction {
   bool hung_up_ = false;
   // The last request went out and got no whole reply: some of it may still wait in the port.
   bool unanswered_ = false;
+  // The last request's length in characters.
+  int request_chars_ = 0;
   std::array<std::uint8_t, kMaxFrame> rx_{};
   int rx_len_ = 0;
   // The line's last activity: the end of the last byte read, or of the last request's wire time.

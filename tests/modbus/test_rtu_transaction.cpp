@@ -1,7 +1,7 @@
 // Modbus RTU transactions (drivers/modbus/rtu_transaction.hpp) against a slave played by the test
 // on the other end of a socket pair: the reply checked by length, CRC and unit; the inter-frame
-// silence kept before every request; a late reply drained or recognised instead of taken for the
-// next answer; the caller's budget never exceeded.
+// silence kept before every request, and after an unanswered one from its flush; a late reply
+// drained or recognised instead of taken for the next answer; the caller's budget never exceeded.
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <modbus/modbus.h>
@@ -189,6 +189,27 @@ TEST(RtuTransaction, RestOfALateReplyIsDrainedBeforeTheNextRequest) {
   slave.join();
   EXPECT_EQ(m.rtu.late_replies(), 1u);
   EXPECT_GE(write_arrived - rest_sent, kLongSilence);
+}
+
+// A request that got no answer may still be in the port, and what the flush before the next one
+// cannot reach may leave as late as the flush: the next request keeps the silence after that.
+TEST(RtuTransaction, AfterAnUnansweredRequestTheSilenceCountsFromItsFlush) {
+  Line line;
+  constexpr std::int64_t kLongSilence = 400'000'000;
+  Master m(line, kLongSilence);
+  usleep(kLongSilence / 1000 + 50'000);
+  std::thread slave([&] {
+    line.request();  // never answered
+    line.request();
+    line.send(framed({kUnit, 0x06, 0x04, 0x4C, 0x00, 0x05}));
+  });
+  EXPECT_EQ(m.read(line, 0.060), ETIMEDOUT);
+  const std::int64_t timed_out = clock::monotonic_ns();
+  ASSERT_EQ(m.write(line, 5, 2.0), 0);
+  slave.join();
+  // Counted from the unanswered request's own wire time instead, the write would have left
+  // 60 ms sooner.
+  EXPECT_GE(m.rtu.request_sent_ns() - timed_out, kLongSilence + 8 * kCharNs);
 }
 
 TEST(RtuTransaction, LateReplyToTheOtherFunctionIsRecognisedNotTakenForTheAnswer) {
