@@ -47,6 +47,7 @@ class Budget {
 
   // Every pass from here on switches the voltage this much later than recorded.
   void set_input_delay(double d) { input_delay_ = d; }
+  double input_delay() const { return input_delay_; }
   double mean_interval() const { return mean_interval_; }
   int evaluations() const { return evaluations_; }
 

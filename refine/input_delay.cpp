@@ -131,7 +131,10 @@ class DelayProfile {
 
 // σ_d from the profile's curvature over ±h, Δχ² = 1, with h near σ_d itself (the parabola is
 // exact there; far smaller steps drown in the solver's tolerance); a side beyond the search range
-// [lowest, limit] is the range's end. Once σ_d and h agree, d̂ moves to the parabola's vertex.
+// [lowest, limit] is the range's end. Each round d̂ moves to the parabola's vertex where that
+// lowers the cost: the golden section stops at its 0.5 µs tolerance, and where the noise lets
+// T̄ resolve d far more finely (a clean link: σ_d of 0.1 ns) the rest of the way is the
+// vertex's. Settled once σ_d and h agree and the vertex lay within h.
 void measure_curvature(DelayProfile& profile, double lowest, double limit) {
   InputDelayEstimate& out = profile.best;
   double d = out.delay;
@@ -152,17 +155,21 @@ void measure_curvature(DelayProfile& profile, double lowest, double limit) {
     }
     out.sigma = std::sqrt(2.0 * var_t / curvature);
     out.ok = true;
-    const double vertex = 0.5 * (lo + hi) - 0.5 * (sl + sr) / curvature;
-    const bool settled = out.sigma < 4.0 * h && out.sigma > 0.25 * h;
-    if (settled && vertex > lo && vertex < hi) {
+    // A side point that lowered the cost is already d̂ (cost_at keeps the best); the vertex is
+    // tried within a few h of where the parabola was measured.
+    const double vertex = std::clamp(0.5 * (lo + hi) - 0.5 * (sl + sr) / curvature,
+                                     std::max(lowest, d - 4.0 * h), std::min(limit, d + 4.0 * h));
+    const double moved = std::abs(vertex - d);
+    if (moved > 0.0) {
       ParamVector p_at = out.p;
       const double cv = profile.fit_at(vertex, p_at);
       if (cv <= profile.best_cost) {
         profile.best_cost = cv;
-        out.delay = d = vertex;
+        out.delay = vertex;
         out.p = p_at;
       }
     }
+    const bool settled = out.sigma < 4.0 * h && out.sigma > 0.25 * h && moved <= h;
     if (settled) break;
     h = std::clamp(out.sigma, 1e-9, limit / 4);
     d = out.delay;

@@ -201,6 +201,34 @@ TEST(Fit, AnUnmodelledOutputLatencyIsEstimatedFromTemperature) {
   EXPECT_NEAR(estimated.input_delay_s, kLatency, 5 * estimated.input_delay_sigma_s);
 }
 
+// The daemon's default: the bench's nuisance terms estimated beside the delay. To first order a
+// sensor's lag and the voltage's delay move T̄'s reading alike (by −τs·dT̄/dt and −d·dT̄/dt), and
+// x cannot tell the delay from θ1..θ4's common scale: a lag left free beside the delay let the
+// delay's search run to its limit, the lag to minus that, and θ1..θ4 to 4 times their size.
+TEST(Fit, TheDelayIsEstimatedBesideTheBenchsNuisanceTerms) {
+  const auto params = test::paper_actuator();
+  const Vector6 truth = test::theta_of(params);
+  auto w = test::link_record(params, 120.0);
+  constexpr double kLatency = 150e-6;
+  for (auto& s : w) s.voltage_since -= kLatency;
+  FitSettings settings;
+  settings.max_input_delay_s = 5e-3;
+  settings.nuisance.x_zero.fixed = false;
+  settings.nuisance.ambient_offset.fixed = false;
+  settings.nuisance.ambient_drift.fixed = false;
+  settings.nuisance.sensor_lag.fixed = false;
+  const FitResult r = fit(w, truth * 1.1, settings);
+  std::printf(
+      "delay beside the nuisance terms: %s, %.4f us (sigma %.4f us), lag %.3g s%s, max rel "
+      "error %.3g\n",
+      r.message, r.input_delay_s * 1e6, r.input_delay_sigma_s * 1e6, r.nuisance.sensor_lag.value,
+      r.sensor_lag_held ? " (held)" : "", max_relative_error(r.theta, truth));
+  EXPECT_TRUE(r.converged) << r.message;
+  EXPECT_NEAR(r.input_delay_s, kLatency, 0.05e-6);
+  EXPECT_LT(std::abs(r.nuisance.sensor_lag.value), 1e-7);
+  EXPECT_LT(max_relative_error(r.theta, truth), 1e-5);
+}
+
 // A DAC that switches at the samples (the simulated plant): the delay cannot be negative there,
 // and the estimate finds none.
 TEST(Fit, ASampleSynchronousDacHasNoDelay) {
