@@ -97,6 +97,30 @@ TEST(SensorLag, AnEstimatedLagIsRecoveredAndThetaStaysWithinItsSigma) {
   for (int i = 0; i < 6; ++i) EXPECT_LT(std::abs(r.theta[i] - truth[i]), 4.0 * r.sigma[i]) << i;
 }
 
+// Beside an estimated delay (refine/lag_hold.hpp: the lag judged with the delay), a
+// thermocouple's lag, far longer than any delay the search allows, is still estimated.
+TEST(SensorLag, ARealLagIsEstimatedBesideTheVoltagesDelay) {
+  const auto w =
+      test::with_noise(lagged_record(120.0, kLag), {.x = 1e-7, .tbar = 1e-3, .seed = 43});
+  FitSettings s;
+  s.max_input_delay_s = 5e-3;
+  for (NuisanceSetting* term : {&s.nuisance.x_zero, &s.nuisance.ambient_offset,
+                                &s.nuisance.ambient_drift, &s.nuisance.sensor_lag})
+    term->fixed = false;
+  const FitResult r = fit(w, test::theta_of(test::paper_actuator()), s);
+  const Vector6 truth = test::theta_of(test::paper_actuator());
+  std::printf("%s; lag %.5f s (σ %.2g)%s; delay %.2f µs (σ %.2g µs); θ err/σ", r.message,
+              r.nuisance.sensor_lag.value, r.nuisance.sensor_lag.sigma,
+              r.sensor_lag_held ? " held" : "", r.input_delay_s * 1e6, r.input_delay_sigma_s * 1e6);
+  for (int i = 0; i < 6; ++i) std::printf(" %.2f", (r.theta[i] - truth[i]) / r.sigma[i]);
+  std::printf("\n");
+  ASSERT_TRUE(r.converged) << r.message;
+  EXPECT_FALSE(r.sensor_lag_held);
+  EXPECT_NEAR(r.nuisance.sensor_lag.value, kLag, 4.0 * r.nuisance.sensor_lag.sigma);
+  EXPECT_NEAR(r.input_delay_s, 0.0, 4.0 * r.input_delay_sigma_s);
+  for (int i = 0; i < 6; ++i) EXPECT_LT(std::abs(r.theta[i] - truth[i]), 4.0 * r.sigma[i]) << i;
+}
+
 // A window short against the excitation's slow period cannot tell a lag from T̄0, the ambient's
 // terms and θ5 (refine/lag_hold.hpp): without one the fit holds it at 0 there and estimates it
 // once the window separates it; a real lag shows in the short window too and is estimated.
