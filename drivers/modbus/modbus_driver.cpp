@@ -434,7 +434,10 @@ IoResult ModbusDriver::read(const CycleTime& now, Sample& out) noexcept {
                   *sigs[s], buffers_[static_cast<std::size_t>(slot.block)].data() + slot.offset);
   }
   out.t = stamping() ? loop_time(sampled_ns) + read_event_s_ : now.t;
-  out.voltage_since = voltage_since_;
+  // The command landed before this read was even sent (one transaction at a time on the link),
+  // so before the sample; a load spike's stamps, each placed where its transaction usually lies
+  // (StampGate), may say otherwise by tens of µs. A replay refuses such a row.
+  out.voltage_since = std::min(voltage_since_, out.t);
   out.x = values[static_cast<std::size_t>(SignalId::x)];
   out.xdot = values[static_cast<std::size_t>(SignalId::xdot)];
   out.temperature = values[static_cast<std::size_t>(SignalId::temperature)];
