@@ -450,13 +450,13 @@ WeightedSample add_timing_weighted(const PassSettings& settings, double wx, doub
 // PassSettings::landing_jitter: the landing filter's update at a sample, after its sensitivities
 // were used: a down-weighted sample (a displaced stamp) corrects the state as much less as it
 // counts. The reference trajectory is filtered alike, so that its residuals, which set the robust
-// weights, are innovations too.
+// weights, are innovations too. `jt`: the T̄ reading's sensitivity (the innovation's, negated).
 void update_with_landing(const PassSettings& settings, double wt, const WeightedSample& sample,
-                         const WindowSample& w, double t0, double rt, Reference& ref,
-                         SensitivitySimulator& sim) {
+                         const WindowSample& w, double t0, double rt, const ParamVector& jt,
+                         Reference& ref, SensitivitySimulator& sim) {
   const Eigen::Vector3d gain = ref.filter.update_with_tbar(
       1.0 / wt + settings.timing_variance * sample.gt * sample.gt, sample.omega);
-  sim.correct_with_tbar(gain, rt);
+  sim.correct_with_tbar(gain, rt, jt);
   correct_with_tbar(ref.state, gain, ref.tbar_residual(w, settings, t0));
 }
 
@@ -494,9 +494,11 @@ bool jacobian_pass(std::span<const WindowSample> window, const ParamVector& p,
     if (lagged && k > 0) lag.advance(window[k].t - window[k - 1].t, sim.state().tbar, &sim.dtbar());
     sums.add(k, window[k], sim.state(), lagged ? lag.reading() : sim.state().tbar, rx, rt);
     ParamVector jx = sim.dx(), jt = lagged ? lag.sensitivities() : sim.dtbar();
-    jx[kXZeroSlot] = 1.0;
-    jt[kAmbientOffsetSlot] = 1.0;
-    jt[kAmbientDriftSlot] = window[k].t - sums.t0;
+    // The outputs' own terms, on top of what the landing filter's corrections carried into the
+    // state (update_with_landing).
+    jx[kXZeroSlot] += 1.0;
+    jt[kAmbientOffsetSlot] += 1.0;
+    jt[kAmbientDriftSlot] += window[k].t - sums.t0;
     if (settings.validator != nullptr)
       feed_validator(*settings.validator, window, k, sim, jx, jt, rx, rt, settings.input_delay);
     if (k == next_batch) [[unlikely]] {
@@ -511,7 +513,8 @@ bool jacobian_pass(std::span<const WindowSample> window, const ParamVector& p,
     } else {
       sample = add_timing_weighted(settings, wx, wt, ref, window[k], sums.t0, rx, rt, jx, jt, r);
     }
-    if (ref.landing) update_with_landing(settings, wt, sample, window[k], sums.t0, rt, ref, sim);
+    if (ref.landing)
+      update_with_landing(settings, wt, sample, window[k], sums.t0, rt, jt, ref, sim);
     r.jtwr += sample.score;
     if (hac) hac->add(sample.score);
     if (batch_score != nullptr) *batch_score += sample.score;

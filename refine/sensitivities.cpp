@@ -61,6 +61,8 @@ void SensitivitySimulator::advance_extended_thermal_sensitivities(const Piece& p
   for (std::size_t i = 0; i < slots.size(); ++i)
     dtbar_[slots[i]] = tp.decay * dtbar_[slots[i]] + drive[static_cast<Eigen::Index>(i)];
   dtbar_[kTbar0] *= tp.decay;
+  if (reading_columns_)
+    for (const int slot : kReadingSlots) dtbar_[slot] *= tp.decay;
 }
 
 void SensitivitySimulator::advance_thermal_sensitivities(const Piece& piece, const ThermalPiece& tp,
@@ -71,6 +73,8 @@ void SensitivitySimulator::advance_thermal_sensitivities(const Piece& piece, con
   }
   // T̄(τ) = e^{−θ5τ}T̄(0) + τφ1(−θ5τ)·θ6·u, differentiated exactly.
   for (int p : {kCooling, kHeating, kTbar0}) dtbar_[p] *= tp.decay;
+  if (reading_columns_)
+    for (const int slot : kReadingSlots) dtbar_[slot] *= tp.decay;
   dtbar_[kCooling] +=
       -piece.tau * tp.decay * tbar_before + tp.dinput_dtheta5(piece) * theta_[kHeating];
   dtbar_[kHeating] += tp.input(piece);
@@ -81,8 +85,34 @@ void SensitivitySimulator::advance_piece_sensitivities(const Piece& piece,
                                                        const ModelState& a) noexcept {
   const Eigen::Vector3d dtbar_a(dtbar_[kCooling], dtbar_[kHeating], dtbar_[kTbar0]);
   const Eigen::Vector2d ext_a(dtbar_[kResistanceTempcoSlot], dtbar_[kCoolingTempcoSlot]);
+  const Eigen::Vector3d reading_a(dtbar_[kReadingSlots[0]], dtbar_[kReadingSlots[1]],
+                                  dtbar_[kReadingSlots[2]]);
   advance_thermal_sensitivities(piece, mp.thermal, a.tbar);
   advance_mechanical_sensitivities(mp, a, dtbar_a, ext_a);
+  if (reading_columns_) advance_reading_sensitivities(mp, a, reading_a);
+}
+
+void SensitivitySimulator::advance_reading_sensitivities(
+    const MechanicalPiece& mp, const ModelState& a, const Eigen::Vector3d& reading_a) noexcept {
+  const ModelState& b = state_;
+  const double th2 = theta_[kDampingSlope], th3 = theta_[kStiffness], th4 = theta_[kThermalForce];
+  // As T̄0's column (advance_mechanical_sensitivities): G = ∂ẍ/∂T̄ · ∂T̄/∂p, linear over the piece.
+  const auto via = [&](const ModelState& s) noexcept {
+    return -(th2 * s.xdot + th4) + th3 * tc_.kappa * s.x;
+  };
+  const double tau = mp.tau;
+  const double scale = tau - tau * tau * tau / 12.0 * mp.q;
+  const Matrix2& e = mp.ef.exp;
+  const Matrix2& f1 = mp.ef.phi1;
+  const Matrix2& f2 = mp.ef.phi2;
+  for (std::size_t i = 0; i < kReadingSlots.size(); ++i) {
+    const int slot = kReadingSlots[i];
+    const double ga = scale * via(a) * reading_a[static_cast<Eigen::Index>(i)];
+    const double gb = scale * via(b) * dtbar_[slot] - ga;
+    const double sx = dx_[slot], sv = dxdot_[slot];
+    dx_[slot] = e(0, 0) * sx + e(0, 1) * sv + f1(0, 1) * ga + f2(0, 1) * gb;
+    dxdot_[slot] = e(1, 0) * sx + e(1, 1) * sv + f1(1, 1) * ga + f2(1, 1) * gb;
+  }
 }
 
 void SensitivitySimulator::advance_mechanical_sensitivities(const MechanicalPiece& mp,

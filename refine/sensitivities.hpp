@@ -35,16 +35,21 @@ class SensitivitySimulator {
   // ∂x/∂p and ∂T̄/∂p at the current sample.
   const ParamVector& dx() const noexcept { return dx_; }
   const ParamVector& dtbar() const noexcept { return dtbar_; }
-  // A measurement update with gains K = [Kx, Kẋ, KT̄] on T̄'s innovation e = T̄ measured − T̄ (the
-  // Kalman filter of refine/landing_filter.hpp): state += K·e. With K held fixed, since the
-  // measurement does not depend on p: ∂x/∂p −= Kx·∂T̄/∂p, ∂ẋ/∂p −= Kẋ·∂T̄/∂p,
-  // ∂T̄/∂p ← (1 − KT̄)·∂T̄/∂p.
-  void correct_with_tbar(const Eigen::Vector3d& gain, double innovation) noexcept {
+  // A measurement update with gains K = [Kx, Kẋ, KT̄] on T̄'s innovation e = T̄ measured − the
+  // model's reading of T̄ (the Kalman filter of refine/landing_filter.hpp): state += K·e. With K
+  // held fixed (the reference trajectory's), ∂state/∂p −= K·∂reading/∂p, `dreading` the
+  // reading's sensitivity: ∂T̄/∂p through the sensor's lag, plus the ambient's offset and drift
+  // where estimated. Taking ∂T̄/∂p alone left those terms' columns open-loop while the cost was
+  // the filter's: steps along them lowered the cost far more than predicted, and the solver
+  // crept (docs/numerics.md, "The landing filter's sensitivities").
+  void correct_with_tbar(const Eigen::Vector3d& gain, double innovation,
+                         const ParamVector& dreading) noexcept {
     refine::correct_with_tbar(state_, gain, innovation);
     forcing_valid_ = false;
-    dx_ -= gain[0] * dtbar_;
-    dxdot_ -= gain[1] * dtbar_;
-    dtbar_ *= 1.0 - gain[2];
+    dx_ -= gain[0] * dreading;
+    dxdot_ -= gain[1] * dreading;
+    dtbar_ -= gain[2] * dreading;
+    for (const int slot : kReadingSlots) reading_columns_ = reading_columns_ || dreading[slot] != 0;
   }
   // Mechanical sub-steps taken so far (refine/model_simulator.hpp, substeps()).
   long substeps_taken() const noexcept { return substeps_; }
@@ -62,6 +67,15 @@ class SensitivitySimulator {
   // The same for the extensions' slots (`extended`).
   void advance_extension_sensitivities(const MechanicalPiece& mp, const ModelState& a,
                                        const Eigen::Vector2d& ext_a) noexcept;
+  // The same for kReadingSlots (`reading_columns_`), whose T̄ column `reading_a` held at a.
+  void advance_reading_sensitivities(const MechanicalPiece& mp, const ModelState& a,
+                                     const Eigen::Vector3d& reading_a) noexcept;
+
+  // The slots of T̄'s reading alone (the ambient's offset and drift, the sensor's lag): they reach
+  // the state only through correct_with_tbar, and from there they follow the dynamics as T̄0's
+  // column does (no forcing of their own).
+  static constexpr std::array<int, 3> kReadingSlots{kAmbientOffsetSlot, kAmbientDriftSlot,
+                                                    kSensorLagSlot};
 
   Vector6 theta_;
   SubstepRule substep_rule_;
@@ -75,6 +89,8 @@ class SensitivitySimulator {
   // slots), valid until a correction moves the state.
   Eigen::Matrix<double, kModelSlots, 1> forcing_end_;
   bool forcing_valid_ = false;
+  // A correction gave kReadingSlots' columns of the state a value: they are propagated.
+  bool reading_columns_ = false;
   long substeps_ = 0;
 };
 

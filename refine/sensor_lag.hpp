@@ -46,8 +46,10 @@ class SensorLag {
       const double slope = (tbar - tbar_) / dt;
       y_ = tbar - tau_ * slope;
       if (dtbar != nullptr) {
+        // T̄'s own column for τs (non-zero once the landing filter has corrected T̄ with a
+        // lagged innovation), plus the reading's explicit dependence on τs.
         dy_ = *dtbar + (-tau_ / dt) * (*dtbar - dtbar_);
-        dy_[kSensorLagSlot] = -slope;
+        dy_[kSensorLagSlot] += -slope;
         dtbar_ = *dtbar;
       }
       tbar_ = tbar;
@@ -58,9 +60,11 @@ class SensorLag {
     const double y = e * y_ + (one_minus_e - c) * tbar_ + c * tbar;
     if (dtbar != nullptr) {
       const double de = step_.de, dc = step_.dc;
-      const double dlag = de * y_ + e * dy_[kSensorLagSlot] + (-de - dc) * tbar_ + dc * tbar;
+      // Through e and c; the rest of τs's column follows the other slots' (T̄'s own column for
+      // τs is non-zero once the landing filter has corrected T̄ with a lagged innovation).
+      const double explicit_dlag = de * y_ + (-de - dc) * tbar_ + dc * tbar;
       dy_ = e * dy_ + (one_minus_e - c) * dtbar_ + c * *dtbar;
-      dy_[kSensorLagSlot] = dlag;
+      dy_[kSensorLagSlot] += explicit_dlag;
       dtbar_ = *dtbar;
     }
     y_ = y;

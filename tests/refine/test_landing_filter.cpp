@@ -1,13 +1,15 @@
 // The landing filter's covariance (refine/landing_filter.hpp) against the model itself: the error
 // a landing δ off puts into [x, ẋ, T̄], measured by simulating the interval twice with the
 // switch moved by δ, must be the direction the filter's P holds, at the sample and one interval
-// later.
+// later. And the filtered pass's gradient against central differences of its own cost, every
+// slot the fit can free included.
 #include <gtest/gtest.h>
 
 #include <cmath>
 
 #include "refine/landing_filter.hpp"
 #include "refine/model_simulator.hpp"
+#include "refine/residual_pass.hpp"
 #include "tests/refine/record.hpp"
 
 namespace scp::refine {
@@ -94,6 +96,40 @@ TEST(LandingFilter, ATbarInnovationCorrectsXByTheShareTbarsErrorExplains) {
   LandingFilter untouched = filter;
   EXPECT_EQ(untouched.update_with_tbar(r, 0.0), Eigen::Vector3d::Zero());
   EXPECT_EQ(untouched.covariance(), after);
+}
+
+// The pass's JᵀWr is −½ ∂cost/∂p of the cost it reports, with the filter's gains fixed by the
+// reference trajectory (they do not depend on p). The filter corrects the state with T̄'s
+// innovation, so a term of T̄'s reading (the ambient's offset and drift, the sensor's lag) reaches
+// the state, and x, through it: a gradient that left those terms open-loop was 12-57 % off there.
+TEST(LandingFilter, TheFilteredPassesGradientIsItsCostsDerivative) {
+  const auto params = test::paper_actuator();
+  const auto w = test::jittered_link_record(params, 20.0, 40e-6, 7);
+  ParamVector p = param_vector(test::theta_of(params) * 1.05, Eigen::Vector3d(0.0, 0.0, 0.0));
+  p[kXZeroSlot] = 2e-7;
+  p[kAmbientOffsetSlot] = 0.05;
+  p[kAmbientDriftSlot] = 1e-4;
+  p[kSensorLagSlot] = 0.02;
+  PassSettings ps;
+  ps.sensor_lag = true;
+  ps.weight = {1.0 / (1e-7 * 1e-7), 1.0 / (1e-3 * 1e-3)};
+  ps.timing = true;
+  ps.timing_variance = 40e-6 * 40e-6;
+  ps.timing_reference = p;
+  ps.landing_jitter = true;
+  const PassResult at = residual_pass(w, p, ps);
+  ASSERT_TRUE(at.finite);
+  for (const int slot : {kDamping, kStiffness, kThermalForce, kCooling, kHeating, kTbar0,
+                         kXZeroSlot, kAmbientOffsetSlot, kAmbientDriftSlot, kSensorLagSlot}) {
+    const double h = 1e-6 * std::max(std::abs(p[slot]), slot == kTbar0 ? 1.0 : 1e-3);
+    ParamVector up = p, down = p;
+    up[slot] += h;
+    down[slot] -= h;
+    const double derivative =
+        (residual_pass(w, up, ps).cost - residual_pass(w, down, ps).cost) / (2.0 * h);
+    EXPECT_NEAR(at.jtwr[slot], -0.5 * derivative, 1e-4 * std::abs(derivative) + 1e-9)
+        << "slot " << slot;
+  }
 }
 
 }  // namespace
