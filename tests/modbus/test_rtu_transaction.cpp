@@ -149,8 +149,10 @@ TEST(RtuTransaction, EveryRequestWaitsForTheInterFrameSilence) {
   std::int64_t reply_sent = 0, next_arrived = 0;
   std::thread slave([&] {
     line.request();
-    line.send(read_reply(1));
+    // Taken before the send: no byte of the reply reaches the master sooner, and a slave thread
+    // preempted after its send (a loaded machine) would take it late.
     reply_sent = clock::monotonic_ns();
+    line.send(read_reply(1));
     line.request(&next_arrived);
     line.send(framed({kUnit, 0x06, 0x04, 0x4C, 0x00, 0x05}));
   });
@@ -179,8 +181,8 @@ TEST(RtuTransaction, RestOfALateReplyIsDrainedBeforeTheNextRequest) {
     const auto late = read_reply(0x0BAD);
     line.send({late.begin(), late.begin() + 4});
     usleep(200'000);
+    rest_sent = clock::monotonic_ns();  // before the send, as above
     line.send({late.begin() + 4, late.end()});
-    rest_sent = clock::monotonic_ns();
     line.request(&write_arrived);
     line.send(framed({kUnit, 0x06, 0x04, 0x4C, 0x00, 0x05}));
   });
