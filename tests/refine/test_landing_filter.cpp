@@ -101,7 +101,7 @@ TEST(LandingFilter, ATbarInnovationCorrectsXByTheShareTbarsErrorExplains) {
 // The pass's JᵀWr is −½ ∂cost/∂p of the cost it reports, with the filter's gains fixed by the
 // reference trajectory (they do not depend on p). The filter corrects the state with T̄'s
 // innovation, so a term of T̄'s reading (the ambient's offset and drift, the sensor's lag) reaches
-// the state, and x, through it: a gradient that left those terms open-loop was 12-57 % off there.
+// the state, and x, through it: a gradient that left those terms open-loop was 17-79 % off there.
 TEST(LandingFilter, TheFilteredPassesGradientIsItsCostsDerivative) {
   const auto params = test::paper_actuator();
   const auto w = test::jittered_link_record(params, 20.0, 40e-6, 7);
