@@ -161,6 +161,15 @@ inline std::vector<WindowSample> link_record(const drivers::sim::PlantParams& pa
   return w;
 }
 
+// The same link with an output latency nobody configured: each switch recorded `latency` s
+// earlier than it landed.
+inline std::vector<WindowSample> late_link_record(const drivers::sim::PlantParams& params,
+                                                  double seconds, double latency) {
+  auto w = link_record(params, seconds);
+  for (auto& s : w) s.voltage_since -= latency;
+  return w;
+}
+
 // What a link's landing stamps get wrong beyond their per-stamp jitter: a constant delay (the
 // voltage switches `delay` s after its stamp) and a slow wander about it, a new offset drawn
 // uniformly from [−wander, wander] every `wander_block_s` (a live link's landing stamps' 10 s

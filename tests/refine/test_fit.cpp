@@ -166,9 +166,8 @@ TEST(Fit, NonUniformSamplingWithMidIntervalVoltage) {
 TEST(Fit, AnUnmodelledOutputLatencyIsEstimatedFromTemperature) {
   const auto params = test::paper_actuator();
   const Vector6 truth = test::theta_of(params);
-  auto w = test::link_record(params, 120.0);
   constexpr double kLatency = 150e-6;
-  for (auto& s : w) s.voltage_since -= kLatency;
+  const auto w = test::late_link_record(params, 120.0, kLatency);
   const FitResult taken = fit(w, truth * 1.1);
   std::printf("instants taken as recorded: %s, theta1..4 rel. error %.3g\n", taken.message,
               mechanical_error(taken.theta, truth));
@@ -208,9 +207,8 @@ TEST(Fit, AnUnmodelledOutputLatencyIsEstimatedFromTemperature) {
 TEST(Fit, TheDelayIsEstimatedBesideTheBenchsNuisanceTerms) {
   const auto params = test::paper_actuator();
   const Vector6 truth = test::theta_of(params);
-  auto w = test::link_record(params, 120.0);
   constexpr double kLatency = 150e-6;
-  for (auto& s : w) s.voltage_since -= kLatency;
+  const auto w = test::late_link_record(params, 120.0, kLatency);
   FitSettings settings;
   settings.max_input_delay_s = 5e-3;
   settings.nuisance.x_zero.fixed = false;

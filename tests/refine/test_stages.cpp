@@ -133,9 +133,8 @@ TEST(InputDelay, TheEarliestSwitchBoundsANegativeDelay) {
 TEST(InputDelay, TheStageFindsALatencyFromTbarAndAppliesIt) {
   const auto params = test::paper_actuator();
   const Vector6 truth = test::theta_of(params);
-  auto w = test::link_record(params, 60.0);
   constexpr double kLatency = 150e-6;
-  for (auto& s : w) s.voltage_since -= kLatency;
+  const auto w = test::late_link_record(params, 60.0, kLatency);
   FitSettings settings;
   FitContext without(w, settings);
   FitState state = state_at(w, truth);
