@@ -260,10 +260,14 @@ TEST(E2eFaults, ModbusServerKilledAndRestartedMidRun) {
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   simdaq->stop(SIGTERM);
   // After the reconnection the first commands are 0 V (no fresh reading yet), then excitation.
+  // Not necessarily to the last one: on a loaded machine a late reply may fault the 2 ms link
+  // again in the last 300 ms, and that fault rightly sends 0 V.
   const auto cmds = read_command_log(run.log);
   ASSERT_FALSE(cmds.empty());
   EXPECT_EQ(cmds.front().volts, 0.0);
-  EXPECT_GT(cmds.back().volts, 0.1);
+  EXPECT_TRUE(std::any_of(cmds.begin(), cmds.end(), [](const auto& c) { return c.volts > 0.1; }))
+      << cmds.size() << " commands logged, the last " << cmds.back().volts << " V\n"
+      << daemon.output();
 }
 
 TEST(E2eFaults, SilentCanNodeFaultsAndRecovers) {
