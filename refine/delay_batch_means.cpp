@@ -3,6 +3,8 @@
 #include <cmath>
 #include <vector>
 
+#include "refine/delay_differences.hpp"
+
 namespace scp::refine {
 
 BatchMeansCheck check_delay_against_batch_means(const PassResult& below, const PassResult& at,
@@ -22,15 +24,16 @@ BatchMeansCheck check_delay_against_batch_means(const PassResult& below, const P
   ParamMatrix normal = ParamMatrix::Zero();
   const auto slot = static_cast<Eigen::Index>(delay_slot);
   for (std::size_t b = 0; b < k; ++b) {
+    const DelayDifferences d =
+        delay_differences(below.batch_costs[b], at.batch_costs[b], above.batch_costs[b],
+                          below.batch_scores[b], above.batch_scores[b], h);
     ParamVector g = at.batch_scores[b];
     ParamMatrix hb = at.batch_information[b];
-    g[slot] = -(above.batch_costs[b] - below.batch_costs[b]) / (4.0 * h);
-    hb(slot, slot) =
-        (above.batch_costs[b] + below.batch_costs[b] - 2.0 * at.batch_costs[b]) / (2.0 * h * h);
-    const ParamVector cross = -(above.batch_scores[b] - below.batch_scores[b]) / (2.0 * h);
+    g[slot] = d.score;
+    hb(slot, slot) = d.information;
     for (Eigen::Index j = 0; j < kParams; ++j) {
       if (j == slot) continue;
-      const double c = free[static_cast<std::size_t>(j)] ? cross[j] : 0.0;
+      const double c = free[static_cast<std::size_t>(j)] ? d.cross[j] : 0.0;
       hb(slot, j) = c;
       hb(j, slot) = c;
     }

@@ -5,12 +5,9 @@
 // stamps wander about the one constant d stands for: docs/numerics.md, "The delay's σ"). d moves
 // θ6, so a σ_d too small is a θ6 σ too small.
 //
-// The pass has no derivative along d, so it is taken by central differences from three thermal
-// passes at the same (θ5, θ6, T̄0) with d at d̂ − h, d̂, d̂ + h, each summed over the same K
-// batches (PassResult::batch_costs, batch_scores): per batch, with cost C_b = Σ w r²,
-//   d's score          g_d,b  = −(C_b(d̂+h) − C_b(d̂−h)) / 4h          (C' = −2 J_dᵀW r)
-//   d's information    H_dd,b = (C_b(d̂+h) + C_b(d̂−h) − 2 C_b(d̂)) / 2h²  (C'' ≈ 2 J_dᵀW J_d)
-//   its cross terms    H_jd,b = −(g_j,b(d̂+h) − g_j,b(d̂−h)) / 2h      (∂g_j/∂d = −J_jᵀW J_d)
+// d's score, information and cross terms come from three thermal passes at the same (θ5, θ6, T̄0)
+// with d at d̂ − h, d̂, d̂ + h, each summed over the same K batches (PassResult::batch_costs,
+// batch_scores), per batch (refine/delay_differences.hpp).
 // d is carried in a slot of p that the thermal stage leaves fixed, and the augmented scores and
 // information go to check_against_batch_means (refine/covariance.hpp), against the white
 // covariance: what it finds for that slot is d's own, the thermal parameters profiled out (their

@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "refine/delay_differences.hpp"
 #include "refine/input_delay.hpp"
 #include "refine/stages.hpp"
 
@@ -100,13 +101,13 @@ LagEvidence lag_evidence(FitContext& ctx, const ParamVector& p, const PassResult
     return e;
   }
   if (!below.finite || !above.finite || !e.pass.finite) return e;
-  // Central differences (refine/delay_batch_means.hpp): C = Σ r², C' = −2 J_dᵀr, C'' ≈ 2 J_dᵀJ_d,
-  // ∂(Jᵀr)/∂d = −JᵀJ_d.
-  e.delay.present = true;
-  e.delay.range = limit;
-  e.delay.cross = -(above.jtwr - below.jtwr) / (2.0 * h);
-  e.delay.information = (above.cost + below.cost - 2.0 * e.pass.cost) / (2.0 * h * h);
-  e.delay.score = -(above.cost - below.cost) / (4.0 * h);
+  const DelayDifferences d =
+      delay_differences(below.cost, e.pass.cost, above.cost, below.jtwr, above.jtwr, h);
+  e.delay = {.present = true,
+             .cross = d.cross,
+             .information = d.information,
+             .score = d.score,
+             .range = limit};
   return e;
 }
 
