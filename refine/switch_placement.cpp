@@ -20,25 +20,31 @@ using SwitchMatrix = Eigen::Matrix<double, Eigen::Dynamic, kParams>;
 struct Switch {
   std::size_t row = 0;
   double phase = 0.0;  // where it is now: 0 at the previous sample, 1 at the row
-  double heat = 0.0;  // T̄'s change per unit of phase later: θ6·(A² − B²)·Δ at the local heating
+  // The perturbation (D, y) of T̄ and of its reading at the row per unit of phase later:
+  // heat·(1, 1 − lag), heat = θ6·(A² − B²)·Δ at the local heating.
+  Eigen::Vector2d start = Eigen::Vector2d::Zero();
 };
 
 // The model linearised about the fit's trajectory, per sample k (the interval (t_{k−1}, t_k]): a
 // perturbation D of T̄ decays by `decay`, the sensor's reading y follows it (y_k = lag·y_{k−1} +
-// (1 − lag)·D_k), and x moves by `x_gain`·D (the mechanical block's static response).
-struct LinearModel {
-  std::vector<double> decay, lag, x_gain;
-  double wx = 0.0, wt = 0.0;  // the channels' weights, 1/σ²
+// (1 − lag)·D_k), and x moves by `x_gain`·D (the mechanical block's static response). So (D, y)
+// at k is a fixed 2×2 image of (D, y) at any earlier k, and what a perturbation does over the
+// stretch between two switch rows is linear in the state it enters the stretch with: one sweep
+// sums each stretch for a unit start, and the switches are then carried over the stretches.
+struct Stretch {
+  Eigen::Matrix<double, kParams, 2> cross = Eigen::Matrix<double, kParams, 2>::Zero();  // JᵀW·O
+  Eigen::Matrix2d quadratic = Eigen::Matrix2d::Zero();                                  // OᵀW·O
+  Eigen::Vector2d residual = Eigen::Vector2d::Zero();                                   // OᵀW·r
+  Eigen::Matrix2d onward = Eigen::Matrix2d::Zero();  // (D, y) at the next switch row
 };
 
-// What one sweep of the fitted model gives: the linear model, the weighted residuals, the
-// switches, and the information of the phases and the fit's slots: HᵢᵀWHᵢ (diagonal),
-// HᵀWJ (cross) and JᵀWJ, JᵀWr (slots).
+// What one sweep of the fitted model gives: the switches, the stretches from each switch row to
+// the next (the last to the window's end), and from them the information of the phases and the
+// fit's slots: HᵢᵀWHᵢ (diagonal), HᵀWJ (cross), HᵀWr (score), JᵀWJ and JᵀWr (slots).
 struct Sweep {
-  LinearModel model;
-  std::vector<double> wrt, wrx;  // W r per sample, T̄ and x
   std::vector<Switch> switches;
-  Eigen::VectorXd diagonal;
+  std::vector<Stretch> stretches;
+  Eigen::VectorXd diagonal, score;
   SwitchMatrix cross;
   ParamMatrix slots = ParamMatrix::Zero();
   ParamVector slots_score = ParamVector::Zero();
@@ -54,62 +60,79 @@ double static_x_gain(const Vector6& theta, const Tempcos& tc, const ModelState& 
          stiffness;
 }
 
-// The switches' columns while they last: each one's perturbation D and reading y, carried from
-// its row until both have decayed below kColumnEnd of its first step.
-class ActiveColumns {
- public:
-  void start(std::size_t index, double heat) { active_.push_back({index, heat, 0.0, 0.0}); }
+// (D, y) at k from (D, y) at k − 1.
+Eigen::Matrix2d linear_step(double decay, double lag) {
+  Eigen::Matrix2d a;
+  a << decay, 0.0, (1.0 - lag) * decay, lag;
+  return a;
+}
 
-  // Advances every column to sample k and adds its products with the sensitivities.
-  void advance(const LinearModel& m, std::size_t k, const ParamVector& jx, const ParamVector& jt,
-               std::span<const Switch> switches, Eigen::VectorXd& diagonal, SwitchMatrix& cross) {
-    std::size_t kept = 0;
-    for (Column& c : active_) {
-      const bool first = switches[c.index].row == k;
-      c.d = first ? c.heat : m.decay[k] * c.d;
-      c.y = m.lag[k] * c.y + (1.0 - m.lag[k]) * c.d;
-      const double x = m.x_gain[k] * c.d;
-      diagonal[static_cast<Eigen::Index>(c.index)] += m.wt * c.y * c.y + m.wx * x * x;
-      cross.row(static_cast<Eigen::Index>(c.index)) +=
-          (m.wt * c.y * jt + m.wx * x * jx).transpose();
-      const double end = kColumnEnd * std::abs(c.heat);
-      if (first || std::abs(c.d) > end || std::abs(c.y) > end) active_[kept++] = c;
+// Sums the stretches during the sweep: psi_ is (D, y) at the current sample per unit start of
+// the current stretch.
+class StretchSums {
+ public:
+  explicit StretchSums(std::vector<Stretch>& out) : out_(out) {}
+
+  // Sample k's step; `switch_row`: a switch starts at k (its own stretch, from k's sample on).
+  void step(const Eigen::Matrix2d& step, bool switch_row) {
+    if (!switch_row) {
+      psi_ = step * psi_;
+      return;
     }
-    active_.resize(kept);
+    if (!out_.empty()) out_.back().onward = step * psi_;
+    out_.emplace_back();
+    psi_.setIdentity();
+  }
+
+  // Sample k's outputs per unit start: x = x_gain·D and T̄'s reading y, weighted wx, wt.
+  void add(double x_gain, double wx, double wt, const ParamVector& jx, const ParamVector& jt,
+           double wrx, double wrt) {
+    if (out_.empty()) return;
+    Stretch& s = out_.back();
+    const Eigen::RowVector2d ox = x_gain * psi_.row(0), oy = psi_.row(1);
+    s.cross.noalias() += (wx * jx) * ox + (wt * jt) * oy;
+    s.quadratic.noalias() += wx * ox.transpose() * ox + wt * oy.transpose() * oy;
+    s.residual.noalias() += wrx * ox.transpose() + wrt * oy.transpose();
   }
 
  private:
-  // A column's share of the sums once both are below this: a millionth of its first step, whose
-  // square is its share of the column's information per sample.
-  static constexpr double kColumnEnd = 1e-6;
-  struct Column {
-    std::size_t index;
-    double heat, d, y;
-  };
-  std::vector<Column> active_;
+  std::vector<Stretch>& out_;
+  Eigen::Matrix2d psi_ = Eigen::Matrix2d::Identity();
 };
 
-// The rows a foh window holds (hold_voltage_switches' switches), at their phases; heat unset.
+// Each switch's columns, carried back from the window's end over the stretches: C_j = S_j +
+// C_{j+1}·T_j, Q_j = R_j + T_jᵀ·Q_{j+1}·T_j, g_j = ρ_j + T_jᵀ·g_{j+1} (T_j: onward).
+void switch_columns(Sweep& s) {
+  const auto n = static_cast<Eigen::Index>(s.switches.size());
+  s.diagonal = Eigen::VectorXd::Zero(n);
+  s.score = Eigen::VectorXd::Zero(n);
+  s.cross = SwitchMatrix::Zero(n, kParams);
+  Eigen::Matrix<double, kParams, 2> c = Eigen::Matrix<double, kParams, 2>::Zero();
+  Eigen::Matrix2d q = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d g = Eigen::Vector2d::Zero();
+  for (std::size_t j = s.stretches.size(); j-- > 0;) {
+    const Stretch& st = s.stretches[j];
+    c = st.cross + c * st.onward;
+    q = st.quadratic + st.onward.transpose() * q * st.onward;
+    g = st.residual + st.onward.transpose() * g;
+    const Eigen::Vector2d& start = s.switches[j].start;
+    const auto at = static_cast<Eigen::Index>(j);
+    s.cross.row(at) = (c * start).transpose();
+    s.diagonal[at] = start.dot(q * start);
+    s.score[at] = start.dot(g);
+  }
+}
+
+// The rows a foh window holds (hold_voltage_switches' switches), at their phases; start unset.
 std::vector<Switch> switch_rows(std::span<const WindowSample> w) {
   std::vector<Switch> out;
   for (std::size_t k = 1; k < w.size(); ++k) {
     const double dt = w[k].t - w[k - 1].t;
     if (w[k].voltage_ramp || !(dt > 0.0)) continue;
-    out.push_back({k, std::clamp((w[k].voltage_since - w[k - 1].t) / dt, 0.0, 1.0), 0.0});
+    out.push_back(
+        {k, std::clamp((w[k].voltage_since - w[k - 1].t) / dt, 0.0, 1.0), Eigen::Vector2d::Zero()});
   }
   return out;
-}
-
-// A linear model of n samples that passes a perturbation on unchanged, the channels weighted by
-// the noise σ (x, T̄).
-LinearModel unit_model(std::size_t n, const Vector2& noise_sigma) {
-  LinearModel m;
-  m.decay.assign(n, 1.0);
-  m.lag.assign(n, 0.0);
-  m.x_gain.assign(n, 0.0);
-  m.wx = 1.0 / (noise_sigma[0] * noise_sigma[0]);
-  m.wt = 1.0 / (noise_sigma[1] * noise_sigma[1]);
-  return m;
 }
 
 Sweep sweep(std::span<const WindowSample> w, const FitResult& fit,
@@ -117,80 +140,54 @@ Sweep sweep(std::span<const WindowSample> w, const FitResult& fit,
   const Tempcos tc = fitted_tempcos(fit);
   const FreeMask free = fitted_slots(fit, known);
   const double sensor_lag = fit.nuisance.sensor_lag.value;
+  const double wx = 1.0 / (fit.noise_sigma[0] * fit.noise_sigma[0]);
+  const double wt = 1.0 / (fit.noise_sigma[1] * fit.noise_sigma[1]);
   Sweep out;
-  LinearModel& m = out.model;
-  m = unit_model(w.size(), fit.noise_sigma);
-  out.wrt.assign(w.size(), 0.0);
-  out.wrx.assign(w.size(), 0.0);
   out.switches = switch_rows(w);
-  out.diagonal = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(out.switches.size()));
-  out.cross = SwitchMatrix::Zero(static_cast<Eigen::Index>(out.switches.size()), kParams);
   if (out.switches.empty() || out.switches.size() > kMostPlacedSwitches) return out;
-  ActiveColumns columns;
+  out.stretches.reserve(out.switches.size());
+  StretchSums sums(out.stretches);
   std::size_t next = 0;
   double prev_tbar = fit.initial_state[2];
   sweep_fitted_model(w, fit, [&](const FittedSample& f) {
     const std::size_t k = f.k;
     const ModelState& s = *f.state;
-    m.x_gain[k] = static_x_gain(fit.theta, tc, s);
     if (k > 0) {
       const double dt = w[k].t - w[k - 1].t;
       const ThermalLinearization l = linearize_thermal(fit.theta, tc, prev_tbar, f.thermal_input);
-      m.decay[k] = std::exp(-l.a * dt);
-      m.lag[k] = sensor_lag > 0.0 ? std::exp(-dt / sensor_lag) : 0.0;
-      if (next < out.switches.size() && out.switches[next].row == k) {
+      const double lag = sensor_lag > 0.0 ? std::exp(-dt / sensor_lag) : 0.0;
+      const bool switch_row = next < out.switches.size() && out.switches[next].row == k;
+      if (switch_row) {
         const double before = w[k - 1].voltage * w[k - 1].voltage;
         const double after = w[k].voltage * w[k].voltage;
-        out.switches[next].heat = l.b * (before - after) * dt;
-        columns.start(next, out.switches[next].heat);
-        ++next;
+        const double heat = l.b * (before - after) * dt;
+        out.switches[next++].start = {heat, heat * (1.0 - lag)};
       }
+      sums.step(linear_step(std::exp(-l.a * dt), lag), switch_row);
     }
     prev_tbar = s.tbar;
-    const double rx = w[k].x - f.x_model, rt = w[k].tbar - f.tbar_model;
-    out.wrx[k] = m.wx * rx;
-    out.wrt[k] = m.wt * rt;
     ParamVector jx = *f.jx, jt = *f.jt;
     for (int i = 0; i < kParams; ++i) {
       if (free[static_cast<std::size_t>(i)]) continue;
       jx[i] = 0.0;
       jt[i] = 0.0;
     }
-    out.slots.selfadjointView<Eigen::Upper>().rankUpdate(jx, m.wx);
-    out.slots.selfadjointView<Eigen::Upper>().rankUpdate(jt, m.wt);
-    out.slots_score += out.wrx[k] * jx + out.wrt[k] * jt;
-    columns.advance(m, k, jx, jt, out.switches, out.diagonal, out.cross);
+    const double wrx = wx * (w[k].x - f.x_model), wrt = wt * (w[k].tbar - f.tbar_model);
+    out.slots.selfadjointView<Eigen::Upper>().rankUpdate(jx, wx);
+    out.slots.selfadjointView<Eigen::Upper>().rankUpdate(jt, wt);
+    out.slots_score += wrx * jx + wrt * jt;
+    sums.add(static_x_gain(fit.theta, tc, s), wx, wt, jx, jt, wrx, wrt);
   });
   out.slots = out.slots.selfadjointView<Eigen::Upper>();
+  if (out.stretches.size() == out.switches.size()) switch_columns(out);
   return out;
-}
-
-// Hᵀu for per-sample output weights (ut on T̄'s reading, ux on x): the linear model's adjoint.
-Eigen::VectorXd adjoint(const LinearModel& m, std::span<const Switch> switches,
-                        const std::vector<double>& ut, const std::vector<double>& ux) {
-  const std::size_t n = ut.size();
-  std::vector<double> lambda_d(n, 0.0);
-  double ly = 0.0, ld = 0.0;  // the adjoints of y and D at k + 1
-  for (std::size_t k = n; k-- > 0;) {
-    const bool last = k + 1 == n;
-    // y_{k+1} = lag·y_k + (1 − lag)·D_{k+1} and D_{k+1} = decay·D_k + impulse: D_k reaches the
-    // outputs through its own reading and x, and through D_{k+1} (whose adjoint holds the rest).
-    ly = ut[k] + (last ? 0.0 : m.lag[k + 1] * ly);
-    ld = ux[k] * m.x_gain[k] + (1.0 - m.lag[k]) * ly + (last ? 0.0 : m.decay[k + 1] * ld);
-    lambda_d[k] = ld;
-  }
-  Eigen::VectorXd g(static_cast<Eigen::Index>(switches.size()));
-  for (std::size_t i = 0; i < switches.size(); ++i)
-    g[static_cast<Eigen::Index>(i)] = switches[i].heat * lambda_d[switches[i].row];
-  return g;
 }
 
 // The phases' normal matrix with the fit's slots profiled out, applied to δ:
 // (HᵀWH + prior)·δ − C·A⁻¹·Cᵀδ, C = HᵀWJ, A = JᵀWJ over the free slots.
 class ProfiledNormal {
  public:
-  ProfiledNormal(const Sweep& s, std::size_t samples)
-      : s_(s), ut_(samples), ux_(samples), impulse_(samples, 0.0) {
+  explicit ProfiledNormal(const Sweep& s) : s_(s), entering_(s.stretches.size()) {
     const Eigen::VectorXd scale = s.slots.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
     const ParamMatrix scaled = scale.asDiagonal() * s.slots * scale.asDiagonal();
     ParamMatrix regular = scaled;
@@ -209,21 +206,24 @@ class ProfiledNormal {
     return scale_.cwiseProduct(solver_.solve(scaled));
   }
 
+  // HᵀWH·δ: forward, the perturbation z_j every stretch starts with (z_j = T_{j−1}·z_{j−1} +
+  // start_j·δ_j); backward, a_j = R_j·z_j + T_jᵀ·a_{j+1}, and (HᵀWHδ)_j = start_j·a_j.
   Eigen::VectorXd apply(const Eigen::VectorXd& delta) {
-    std::fill(impulse_.begin(), impulse_.end(), 0.0);
-    for (std::size_t i = 0; i < s_.switches.size(); ++i)
-      impulse_[s_.switches[i].row] += s_.switches[i].heat * delta[static_cast<Eigen::Index>(i)];
-    const LinearModel& m = s_.model;
-    double d = 0.0, y = 0.0;
-    for (std::size_t k = 0; k < impulse_.size(); ++k) {
-      d = m.decay[k] * d + impulse_[k];
-      y = m.lag[k] * y + (1.0 - m.lag[k]) * d;
-      ut_[k] = m.wt * y;
-      ux_[k] = m.wx * m.x_gain[k] * d;
+    const std::vector<Stretch>& st = s_.stretches;
+    Eigen::Vector2d z = Eigen::Vector2d::Zero();
+    for (std::size_t j = 0; j < st.size(); ++j) {
+      if (j > 0) z = st[j - 1].onward * z;
+      z += s_.switches[j].start * delta[static_cast<Eigen::Index>(j)];
+      entering_[j] = z;
+    }
+    Eigen::VectorXd out(delta.size());
+    Eigen::Vector2d a = Eigen::Vector2d::Zero();
+    for (std::size_t j = st.size(); j-- > 0;) {
+      a = st[j].quadratic * entering_[j] + st[j].onward.transpose() * a;
+      out[static_cast<Eigen::Index>(j)] = s_.switches[j].start.dot(a);
     }
     const ParamVector cross_t = s_.cross.transpose() * delta;
-    return adjoint(m, s_.switches, ut_, ux_) + kSwitchPhasePriorPrecision * delta -
-           s_.cross * slots_solve(cross_t);
+    return out + kSwitchPhasePriorPrecision * delta - s_.cross * slots_solve(cross_t);
   }
 
   // The diagonal of the profiled matrix, for the preconditioner.
@@ -238,7 +238,7 @@ class ProfiledNormal {
 
  private:
   const Sweep& s_;
-  std::vector<double> ut_, ux_, impulse_;
+  std::vector<Eigen::Vector2d> entering_;
   ParamVector scale_ = ParamVector::Ones();
   Eigen::LDLT<ParamMatrix> solver_;
 };
@@ -282,8 +282,12 @@ bool prepare_placement(std::span<const WindowSample> prepared, const FitResult& 
   out.sweep = sweep(prepared, fit, known);
   const Sweep& s = out.sweep;
   if (s.switches.empty() || s.switches.size() > kMostPlacedSwitches) return false;
-  if (!s.cross.allFinite() || !s.slots.allFinite() || !s.diagonal.allFinite()) return false;
-  out.op = std::make_unique<ProfiledNormal>(s, prepared.size());
+  if (s.stretches.size() != s.switches.size()) return false;  // the sweep stopped short
+  if (!s.cross.allFinite() || !s.slots.allFinite() || !s.diagonal.allFinite() ||
+      !s.score.allFinite()) {
+    return false;
+  }
+  out.op = std::make_unique<ProfiledNormal>(s);
   if (!out.op->ok()) return false;
   out.diagonal = out.op->diagonal();
   return true;
@@ -314,8 +318,7 @@ SwitchPlacement place_voltage_switches(std::span<WindowSample> prepared, const F
   const Sweep& s = p.sweep;
   const Eigen::VectorXd& diagonal = p.diagonal;
   // The score of the phases with the slots' own score profiled out (0 at a converged fit).
-  const Eigen::VectorXd b =
-      adjoint(s.model, s.switches, s.wrt, s.wrx) - s.cross * p.op->slots_solve(s.slots_score);
+  const Eigen::VectorXd b = s.score - s.cross * p.op->slots_solve(s.slots_score);
   const Eigen::VectorXd delta = conjugate_gradients(*p.op, b, diagonal);
   if (!delta.allFinite()) return out;
   out.decrease = b.dot(delta);

@@ -17,7 +17,9 @@
 // step is Gauss–Newton's for the phases with the fit's free slots profiled out (the Schur
 // complement of their information, which one forward sweep of the fitted model's sensitivities
 // gives), and the fit is then made again at the new phases. The normal equations are solved by
-// conjugate gradients, whose products are one forward and one adjoint sweep of the linear model.
+// conjugate gradients; a switch's perturbation is a fixed 2×2 image of its start, so the sweep
+// sums the linear model once per stretch between two switch rows and each product is a forward
+// and a backward pass over the stretches.
 // Each phase has the prior of a switch anywhere in its interval (variance 1/12 about where it
 // is), so a switch the data cannot place stays put.
 // refine/fit.cpp alternates this with the fit of θ.
@@ -46,7 +48,7 @@ enum class PlacementStep : bool { needs_evidence, follows };
 
 // Moves voltage_since of every switch row of `prepared` (a foh, smooth window after
 // prepare_window: the rows hold_voltage_switches held, which `fit` fitted; `known` its fixed θ) to
-// where the fit's residuals place it, within its interval. Allocates O(samples); leaves `prepared`
+// where the fit's residuals place it, within its interval. Allocates O(switches); leaves `prepared`
 // as it was when it has no switch, more than kMostPlacedSwitches, the step is not finite, or (the
 // first step) the data do not ask for it.
 SwitchPlacement place_voltage_switches(std::span<WindowSample> prepared, const FitResult& fit,
@@ -62,9 +64,8 @@ Matrix6 placed_switches_covariance(std::span<const WindowSample> prepared, const
 
 // The phases' prior: a switch anywhere in its interval, variance 1/12.
 inline constexpr double kSwitchPhasePriorPrecision = 12.0;
-// More switches than this are left where they are: each column of the preconditioner is followed
-// for the thermal time constant, and a drive switching every few periods gives each switch too
-// little heat to place (its phases' errors average out instead).
+// More switches than this are left where they are: a drive switching every few periods gives each
+// switch too little heat to place (its phases' errors average out instead).
 inline constexpr std::size_t kMostPlacedSwitches = 4000;
 
 }  // namespace scp::refine
