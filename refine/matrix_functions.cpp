@@ -46,9 +46,11 @@ bool converged(double term, double sum) noexcept {
   return std::abs(term) < 1e-17 * std::abs(sum);
 }
 
-// φ1 and φ2 at complex z.
-std::array<Complex, 2> phi12_of(Complex z) noexcept {
-  if (std::abs(z) < kSeriesRadius) {
+// φ1 and φ2 at complex z, given e = e^z. Beyond the series, 1/z as z̄/|z|² (|z| ≥ 1: nothing to
+// overflow), not std::complex's division, whose library call guards against infinities that
+// cannot occur here and cost as much as the exponential.
+std::array<Complex, 2> phi12_of(Complex z, Complex e) noexcept {
+  if (std::norm(z) < kSeriesRadius * kSeriesRadius) {
     Complex p1 = 0.0, p2 = 0.0, t1 = 1.0, t2 = 0.5;  // z^j/(j+1)!, z^j/(j+2)!
     for (std::size_t j = 0; j < kSeriesTerms; ++j) {
       p1 += t1;
@@ -58,8 +60,9 @@ std::array<Complex, 2> phi12_of(Complex z) noexcept {
     }
     return {p1, p2};
   }
-  const Complex p1 = (std::exp(z) - 1.0) / z;
-  return {p1, (p1 - 1.0) / z};
+  const Complex inverse = std::conj(z) / std::norm(z);
+  const Complex p1 = (e - 1.0) * inverse;
+  return {p1, (p1 - 1.0) * inverse};
 }
 
 // e^z, φ1(z), φ2(z) at real z, one transcendental call: near 0 the series and e^z = 1 + z·φ1;
@@ -144,8 +147,8 @@ G coefficients(double c, double delta2, double det) noexcept {
   }
   const double omega = std::sqrt(-delta2);
   const Complex z(c, omega);
-  const Complex e = std::exp(z);
-  const auto f = phi12_of(z);
+  const Complex e = std::polar(std::exp(c), omega);  // finite z: no need of cexp's special cases
+  const auto f = phi12_of(z, e);
   const Complex v[3] = {e, f[0], f[1]};
   for (int k = 0; k < 3; ++k) {
     g.g0[k] = v[k].real();
