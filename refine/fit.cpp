@@ -223,10 +223,21 @@ FitResult fit_with_placed_switches(std::span<WindowSample> prepared, const FitSe
     if (!(placed.decrease >= kSettledDecrease)) break;
     iterations += fitted.iterations;
     evaluations += fitted.evaluations;
-    FitResult next = fit_prepared(prepared, fitted.theta, refit);
+    FitResult next = refit_same_window(prepared, fitted, refit);
     if (!next.validated) break;  // the fit of the last phases that ran to its verdict stands
     next.voltage_switches = fitted.voltage_switches;
     fitted = std::move(next);
+  }
+  // The rounds kept the extensions the fit at one phase chose; `auto` chooses again at the
+  // placed phases, where a switch's misplaced heat no longer passes for a missing term.
+  if (has_automatic(settings.extensions) && fitted.voltage_switches.placed > 0) {
+    iterations += fitted.iterations;
+    evaluations += fitted.evaluations;
+    FitResult next = fit_prepared(prepared, fitted.theta, refit);
+    if (next.validated) {
+      next.voltage_switches = fitted.voltage_switches;
+      fitted = std::move(next);
+    }
   }
   fitted.iterations += iterations;
   fitted.evaluations += evaluations;

@@ -1,6 +1,7 @@
 // The warm refit (refine/warm_start.hpp): the last stage of the full fit (refine/fit.cpp) from the
 // previous window's solution shifted to this one.
 #include <algorithm>
+#include <limits>
 #include <vector>
 
 #include "refine/interval_averaging.hpp"
@@ -223,6 +224,16 @@ FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
   add_interval_covariance(result, warm.interval_covariance);
   result.warm = true;
   result.warm_fallback = WarmFallback::none;
+  return result;
+}
+
+FitResult refit_same_window(std::span<const WindowSample> prepared, const FitResult& fitted,
+                            const FitSettings& settings) {
+  const WarmStart from = warm_start(fitted, settings, prepared.front());
+  FitResult result =
+      joint_refit(prepared, from, with_chosen_extensions(settings, fitted.extensions),
+                  std::numeric_limits<int>::max());
+  carry_choice(fitted.extensions, settings.extensions, result.extensions);
   return result;
 }
 

@@ -91,4 +91,11 @@ FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
 FitResult joint_refit(std::span<const WindowSample> prepared, const WarmStart& from,
                       const FitSettings& settings, int max_iterations, bool neighbour = false);
 
+// θ fitted again on the window `fitted` fitted, prepared alike but for a small change of its
+// samples (the switches placed anew: refine/switch_placement.hpp): the joint stage from `fitted`'s
+// solution at the full fit's tolerance, its model and its choices (extensions, lag held, delay,
+// noise model) kept.
+FitResult refit_same_window(std::span<const WindowSample> prepared, const FitResult& fitted,
+                            const FitSettings& settings);
+
 }  // namespace scp::refine
