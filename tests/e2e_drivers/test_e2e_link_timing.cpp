@@ -270,6 +270,12 @@ TEST(E2eLinkTiming, StampedTransactionsIdentifyFarBetterThanDeadlines) {
         timing.value("input_delay_sigma_inflation", -1.0),
         timing.value("sample_jitter_s", 0.0) * 1e6, timing.value("outliers", -1), inflation_of(0),
         inflation_of(4));
+    // A fit that did not converge (on this 100 Hz link a loaded run may end on the work budget,
+    // docs/numerics.md) is never the estimate the daemon recommends.
+    if (!r.value("converged", false)) {
+      EXPECT_NE(reply->value("best", std::string()), "refined")
+          << names[b] << ": " << reply->value("best_reason", std::string());
+    }
     if (r.value("converged", false)) {
       refined_err[static_cast<std::size_t>(b)] = max_rel(r, 4, 2);
       mechanical_err[static_cast<std::size_t>(b)] = max_rel(r, 0, 4);
