@@ -206,17 +206,16 @@ FitResult fit_prepared(std::span<const WindowSample> window, const Vector6& thet
 constexpr int kPlacementRounds = 6;
 constexpr double kSettledDecrease = 1.0;
 
-// The fit of `prepared` (held at one phase, `fitted` its fit) with each switch placed in its
-// interval by the fitted model's residuals, alternated with the fit of θ from where it got.
+}  // namespace
+
 FitResult fit_with_placed_switches(std::span<WindowSample> prepared, const FitSettings& settings,
-                                   FitResult fitted) {
+                                   FitResult fitted, PlacementStep first) {
   FitSettings refit = settings;
   refit.search_scale = false;  // θ1..θ4's common scale is the fitted one's
   int iterations = 0, evaluations = 0;
   for (int round = 0; round < kPlacementRounds && fitted.validated; ++round) {
-    const SwitchPlacement placed =
-        place_voltage_switches(prepared, fitted, settings.known,
-                               round == 0 ? PlacementStep::needs_evidence : PlacementStep::follows);
+    const SwitchPlacement placed = place_voltage_switches(
+        prepared, fitted, settings.known, round == 0 ? first : PlacementStep::follows);
     if (placed.placed == 0) break;
     fitted.voltage_switches.placed = placed.placed;
     fitted.voltage_switches.rms_phase_sigma = placed.rms_phase_sigma;
@@ -244,6 +243,7 @@ FitResult fit_with_placed_switches(std::span<WindowSample> prepared, const FitSe
   // σ counts the phases as the unknowns they are.
   if (fitted.voltage_switches.placed > 0 && fitted.validated)
     add_covariance_share(fitted, placed_switches_covariance(prepared, fitted, settings.known));
+  if (fitted.voltage_switches.placed > 0) fitted.placed_switches = placed_switches(prepared);
   return fitted;
 }
 
@@ -251,6 +251,8 @@ bool places_switches(const FitSettings& settings, const SwitchPhase& switches) {
   return switches.count > 0 && settings.voltage_hold == estimator::VoltageHold::foh &&
          settings.voltage_shape == VoltageShape::smooth;
 }
+
+namespace {
 
 // The staged fit of the window read under `interval`, its switches at `switches` and then, where
 // it has any, each where the residuals place it.
@@ -263,7 +265,8 @@ FitResult fit_under(std::span<const WindowSample> window, const Vector6& theta_s
   FitResult result = fit_prepared(prepared, theta_start, settings);
   result.voltage_switches = switches;
   if (places_switches(settings, switches) && prepared.data() == storage.data())
-    result = fit_with_placed_switches(storage, settings, std::move(result));
+    result = fit_with_placed_switches(storage, settings, std::move(result),
+                                      PlacementStep::needs_evidence);
   result.voltage_interval = interval;
   return result;
 }

@@ -18,6 +18,7 @@
 #include <cstddef>
 #include <limits>
 #include <span>
+#include <vector>
 
 #include "estimator/estimator.hpp"
 #include "estimator/types.hpp"
@@ -195,8 +196,10 @@ struct FitResult {
   // other interval's θ minus this one's, w the other's weight from the criterion (Schwarz's
   // approximation of its posterior probability: model averaging over the two). Zero otherwise.
   Matrix6 interval_covariance = Matrix6::Zero();
-  // A smooth voltage's switches and where in their intervals the fit put them (foh, smooth).
+  // A smooth voltage's switches and where in their intervals the fit put them (foh, smooth), and
+  // where each placed switch fell, for the next window's warm refit (refine/warm_start.hpp).
   SwitchPhase voltage_switches;
+  std::vector<PlacedSwitch> placed_switches;
   // The nuisance terms and extensions as the fit left them (refine/fit_terms.hpp).
   Nuisance nuisance;
   // FitSettings estimates the sensor's lag, but this window could not tell it from the thermal

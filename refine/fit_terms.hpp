@@ -59,6 +59,12 @@ inline constexpr double kEquivalentThetaShift = 0.25;
 // at the row's own instant).
 // `placed`: how many of them the fit then placed each in its own interval, from its residuals
 // (refine/switch_placement.hpp), and their phases' RMS standard deviation (in intervals).
+// A switch the fit placed in its own interval: its row's t and where it fell (voltage_since).
+struct PlacedSwitch {
+  double t = 0.0;
+  double since = 0.0;
+};
+
 struct SwitchPhase {
   std::size_t count = 0;
   double phase = 0.0;

@@ -135,6 +135,7 @@ WarmStart warm_start(const FitResult& fit, const FitSettings& settings, const Wi
   w.voltage_interval_evidence = fit.voltage_interval_evidence;
   w.interval_covariance = fit.interval_covariance;
   w.voltage_switches = fit.voltage_switches;
+  w.placed_switches = fit.placed_switches;
   w.extensions = fit.extensions;
   w.hac_lags = fit.hac_lags;
   return w;
@@ -213,12 +214,20 @@ FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
   const std::span<const WindowSample> prepared =
       prepare_window(window, settings.voltage_hold, warm.voltage_interval, storage,
                      settings.voltage_shape, warm.voltage_switches.phase);
-  result = joint_refit(prepared, warm, with_chosen_extensions(settings, warm.extensions),
-                       kWarmIterations, true);
+  const bool placed = !warm.placed_switches.empty() && prepared.data() == storage.data() &&
+                      restore_placed_switches(storage, warm.placed_switches) > 0;
+  const FitSettings chosen = with_chosen_extensions(settings, warm.extensions);
+  result = joint_refit(prepared, warm, chosen, kWarmIterations, true);
+  if (placed && result.validated)
+    result = fit_with_placed_switches(storage, chosen, std::move(result), PlacementStep::follows);
   if (settings.voltage_hold == estimator::VoltageHold::foh)
     result.voltage_switches.count = count_voltage_switches(prepared);
   if (!result.validated && !result.converged) return declined(result, WarmFallback::not_converged);
   if (!result.converged) return declined(result, WarmFallback::verdict_failed);
+  if (result.validation.mechanical.verdict == Verdict::kStructure ||
+      result.validation.thermal.verdict == Verdict::kStructure) {
+    return declined(result, WarmFallback::structure_found);
+  }
   carry_choice(warm.extensions, settings.extensions, result.extensions);
   // The choice's doubt, measured when the full fit compared the two intervals.
   add_interval_covariance(result, warm.interval_covariance);

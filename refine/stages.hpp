@@ -10,8 +10,20 @@
 #include "refine/fit_state.hpp"
 #include "refine/input_delay.hpp"
 #include "refine/scale_search.hpp"
+#include "refine/switch_placement.hpp"
 
 namespace scp::refine {
+
+// Rounds of placing the switches of `prepared` (foh, smooth; refine/switch_placement.hpp) and
+// fitting θ again from `fitted`, the fit of `prepared` as it is, until a step would take less
+// than 1 off the weighted cost; `first`: whether the first step needs evidence (Schwarz's
+// criterion) or follows phases placed before. θ's covariance gains the phases' share, and the
+// result the placed switches (FitResult::placed_switches).
+FitResult fit_with_placed_switches(std::span<WindowSample> prepared, const FitSettings& settings,
+                                   FitResult fitted, PlacementStep first);
+
+// Whether the fit places the switches of a window read with `settings` that has `switches`.
+bool places_switches(const FitSettings& settings, const SwitchPhase& switches);
 
 // A window the fit can use (at least 3 samples, finite, t strictly increasing), or why not.
 StopReason check_window(std::span<const WindowSample> window);

@@ -340,4 +340,29 @@ SwitchPlacement place_voltage_switches(std::span<WindowSample> prepared, const F
   return out;
 }
 
+std::vector<PlacedSwitch> placed_switches(std::span<const WindowSample> prepared) {
+  std::vector<PlacedSwitch> out;
+  for (const Switch& sw : switch_rows(prepared))
+    out.push_back({prepared[sw.row].t, prepared[sw.row].voltage_since});
+  return out;
+}
+
+std::size_t restore_placed_switches(std::span<WindowSample> prepared,
+                                    std::span<const PlacedSwitch> placed) {
+  std::size_t moved = 0;
+  auto next = placed.begin();
+  for (const Switch& sw : switch_rows(prepared)) {
+    WindowSample& row = prepared[sw.row];
+    while (next != placed.end() && next->t < row.t) ++next;
+    if (next == placed.end()) break;
+    // The same recorded sample: its t is the same double in both windows.
+    if (next->t != row.t) continue;
+    const double earliest = prepared[sw.row - 1].t;
+    if (!(next->since >= earliest && next->since <= row.t)) continue;
+    row.voltage_since = next->since;
+    ++moved;
+  }
+  return moved;
+}
+
 }  // namespace scp::refine

@@ -27,6 +27,7 @@
 #include <array>
 #include <cstddef>
 #include <span>
+#include <vector>
 
 #include "refine/fit.hpp"
 
@@ -61,6 +62,14 @@ SwitchPlacement place_voltage_switches(std::span<WindowSample> prepared, const F
 // placed.
 Matrix6 placed_switches_covariance(std::span<const WindowSample> prepared, const FitResult& fit,
                                    const std::array<bool, 6>& known);
+
+// The switch rows of `prepared` (a foh, smooth window after prepare_window) where they now fall.
+std::vector<PlacedSwitch> placed_switches(std::span<const WindowSample> prepared);
+
+// Puts each switch row of `prepared` whose t is among `placed` (sorted by t) where `placed` has
+// it; the others stay where prepare_window put them. Returns how many rows it moved.
+std::size_t restore_placed_switches(std::span<WindowSample> prepared,
+                                    std::span<const PlacedSwitch> placed);
 
 // The phases' prior: a switch anywhere in its interval, variance 1/12.
 inline constexpr double kSwitchPhasePriorPrecision = 12.0;

@@ -19,8 +19,12 @@ enum class WarmFallback : std::uint8_t {
   window_grown,
   not_converged,   // the joint stage did not converge within kWarmIterations
   verdict_failed,  // the verdict on the warm solution failed
+  // The model validation found structure the warm solution leaves in a block's residuals: the
+  // choices it kept (the voltage's interval, the switches' places, `auto`'s extensions, the
+  // sensor's lag held) are made again by the full fit.
+  structure_found,
 };
-inline constexpr NameTable<WarmFallback, 8> kWarmFallbackNames{
+inline constexpr NameTable<WarmFallback, 9> kWarmFallbackNames{
     {{WarmFallback::none, "none"},
      {WarmFallback::not_requested, "not_requested"},
      {WarmFallback::settings_changed, "settings_changed"},
@@ -28,7 +32,8 @@ inline constexpr NameTable<WarmFallback, 8> kWarmFallbackNames{
      {WarmFallback::no_overlap, "no_overlap"},
      {WarmFallback::window_grown, "window_grown"},
      {WarmFallback::not_converged, "not_converged"},
-     {WarmFallback::verdict_failed, "verdict_failed"}}};
+     {WarmFallback::verdict_failed, "verdict_failed"},
+     {WarmFallback::structure_found, "structure_found"}}};
 
 constexpr const char* to_text(WarmFallback fallback) noexcept {
   return name_of(kWarmFallbackNames, fallback);

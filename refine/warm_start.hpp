@@ -10,6 +10,7 @@
 // fit, and keeping them would double the window's memory.
 
 #include <span>
+#include <vector>
 
 #include "refine/fit.hpp"
 
@@ -51,6 +52,7 @@ struct WarmStart {
   IntervalEvidence voltage_interval_evidence;     // the warm refit keeps the choice, and its doubt
   Matrix6 interval_covariance = Matrix6::Zero();  // and the doubt's share of the covariance
   SwitchPhase voltage_switches;                   // and the switches' phase
+  std::vector<PlacedSwitch> placed_switches;      // and where each placed switch fell
   int hac_lags = 0;  // the previous fit's Newey–West lags (FitResult::hac_lags)
   // The extensions as the fit left them: their coefficients and, for `auto`, which it kept (the
   // warm refit keeps the same model; the choice is made again by the next full fit).
@@ -77,8 +79,10 @@ WarmFallback applicable(const WarmStart& warm, std::span<const WindowSample> win
 
 // The warm refit of `window` (checked by the caller, as fit() does) from `warm`: the joint stage
 // with at most kWarmIterations iterations per round of its noise model, then the covariance and
-// the verdict. warm = true when it applied, converged and passed; otherwise warm_fallback says
-// why (fit() with FitSettings::warm then runs the full fit).
+// the verdict. Switches the previous fit placed keep their places, and the rounds of placement
+// follow (the window's new switches placed, the others moved where the new window asks). warm =
+// true when it applied, converged and passed; otherwise warm_fallback says why (fit() with
+// FitSettings::warm then runs the full fit).
 FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
                 const FitSettings& settings);
 

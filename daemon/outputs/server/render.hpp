@@ -25,7 +25,8 @@ inline constexpr int kProtoMajor = 1;
 // 1.9: refined.voltage_interval `undetermined` and refined.voltage_interval_test (issue 28).
 // 1.11: refined.voltage_switches (a smooth voltage's switches and their phase, issue 28).
 // 1.13: refined.voltage_switches.placed and phase_sigma (switches placed one by one, issue 28).
-inline constexpr int kProtoMinor = 13;
+// 1.14: refined.warm_fallback structure_found (a warm refit whose validation finds structure).
+inline constexpr int kProtoMinor = 14;
 
 std::string render_version(std::string_view release);
 std::string render_error(std::string_view message);
