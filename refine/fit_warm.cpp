@@ -224,10 +224,7 @@ FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
     result.voltage_switches.count = count_voltage_switches(prepared);
   if (!result.validated && !result.converged) return declined(result, WarmFallback::not_converged);
   if (!result.converged) return declined(result, WarmFallback::verdict_failed);
-  if (result.validation.mechanical.verdict == Verdict::kStructure ||
-      result.validation.thermal.verdict == Verdict::kStructure) {
-    return declined(result, WarmFallback::structure_found);
-  }
+  if (result.validation.structure_found()) return declined(result, WarmFallback::structure_found);
   carry_choice(warm.extensions, settings.extensions, result.extensions);
   // The choice's doubt, measured when the full fit compared the two intervals.
   add_interval_covariance(result, warm.interval_covariance);

@@ -164,6 +164,10 @@ struct ValidationReport {
   std::size_t samples = 0;
   std::size_t skipped = 0;  // samples left out: a value not finite, or t not after the last one
 
+  // Whether either block's residuals show structure the model lacks (θ̂ at risk).
+  bool structure_found() const {
+    return mechanical.verdict == Verdict::kStructure || thermal.verdict == Verdict::kStructure;
+  }
   const BlockReport& block(ValidationBlock b) const {
     return b == ValidationBlock::kMechanical ? mechanical : thermal;
   }

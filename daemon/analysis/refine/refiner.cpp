@@ -105,13 +105,10 @@ void copy_result(const scp::refine::FitResult& r, RefinedView& v) noexcept {
 // verdict). Not a cancelled fit or an unusable window.
 bool model_rejected(const scp::refine::FitResult& r) noexcept {
   using scp::refine::StopReason;
-  using scp::refine::Verdict;
   if (r.stop == StopReason::stalled || r.stop == StopReason::work_budget_spent ||
       r.stop == StopReason::evaluation_budget_spent || r.stop == StopReason::model_unstable)
     return true;
-  return r.converged && r.validated &&
-         (r.validation.mechanical.verdict == Verdict::kStructure ||
-          r.validation.thermal.verdict == Verdict::kStructure);
+  return r.converged && r.validated && r.validation.structure_found();
 }
 
 }  // namespace
