@@ -289,12 +289,32 @@ void compare_intervals(std::span<const WindowSample> window, const Vector6& thet
   add_interval_covariance(result, interval_covariance(result, alt, e.statistic, settings.known));
 }
 
+// The declared interval, with the evidence of weighing it against the other as `estimate` would
+// (FitSettings::check_declared_interval).
+IntervalChoice weigh_declared_interval(std::span<const WindowSample> window,
+                                       const Vector6& theta_start, const FitSettings& settings) {
+  const IntervalChoice data = weigh_voltage_interval(window, theta_start, settings);
+  const bool agrees = data.interval == settings.voltage_interval;
+  IntervalChoice declared;
+  declared.interval = settings.voltage_interval;
+  declared.switches = agrees ? data.switches : data.other_switches;
+  declared.other_switches = agrees ? data.other_switches : data.switches;
+  declared.evidence = {.determined = data.evidence.determined,
+                       .statistic = data.evidence.statistic,
+                       .threshold = data.evidence.threshold,
+                       .checked = true,
+                       .contradicted = !agrees && data.evidence.determined};
+  return declared;
+}
+
 // The full staged fit (without FitSettings::warm).
 FitResult fit_cold(std::span<const WindowSample> window, const Vector6& theta_start,
                    const FitSettings& settings) {
   IntervalChoice choice;
   if (settings.voltage_interval == VoltageInterval::estimate) {
     choice = weigh_voltage_interval(window, theta_start, settings);
+  } else if (settings.check_declared_interval) {
+    choice = weigh_declared_interval(window, theta_start, settings);
   } else {
     choice.interval = settings.voltage_interval;
     choice.switches = choose_switch_phase(window, choice.interval, theta_start, settings);

@@ -118,6 +118,10 @@ struct FitSettings {
   estimator::VoltageHold voltage_hold = estimator::VoltageHold::zoh;
   // Which interval a row's voltage belongs to (refine/fit_terms.hpp).
   VoltageInterval voltage_interval = VoltageInterval::before;
+  // A declared interval (before or after) is weighed against the other as `estimate` would, and
+  // the fit says when the data contradict it (IntervalEvidence::contradicted). A declaration is a
+  // guess a criterion can refute where the window decides; the fit still uses the declared one.
+  bool check_declared_interval = false;
   // With foh: how the voltage varied between the rows (refine/fit_terms.hpp).
   VoltageShape voltage_shape = VoltageShape::linear;
   // The nuisance terms of a real bench, each estimated or fixed (refine/fit_terms.hpp).

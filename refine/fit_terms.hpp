@@ -50,6 +50,12 @@ struct IntervalEvidence {
   bool compared = false;  // both intervals fitted (undetermined, and the chosen fit converged)
   bool equivalent = false;
   double theta_shift_sigma = 0.0;
+  // A declared interval weighed as `estimate` would weigh it (FitSettings::check_declared_interval:
+  // `determined`, `statistic` and `threshold` are then that weighing's, for the interval the data
+  // prefer), and `contradicted` when the data determined the other one: θ1..θ4 are then the
+  // declaration's, which the data reject.
+  bool checked = false;
+  bool contradicted = false;
 };
 // A bias of a quarter σ costs an estimate 3 % of its RMS error and its 2σ interval 1 % coverage.
 inline constexpr double kEquivalentThetaShift = 0.25;

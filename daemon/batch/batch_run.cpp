@@ -315,14 +315,17 @@ std::string refined_heading(const nlohmann::json& s) {
   return line;
 }
 
-// The voltage's interval the fit used, and when it estimated it, how far the data decided it.
+// The voltage's interval the fit used, and when it estimated it or weighed the declared one, how
+// far the data decided it.
 std::string interval_line(const nlohmann::json& r) {
   std::string out = "voltage interval: " + r.value("voltage_interval", std::string("-"));
   if (r.contains("voltage_interval_test")) {
     const nlohmann::json& t = r["voltage_interval_test"];
-    char line[160];
-    std::snprintf(line, sizeof line,
-                  " (estimated: fitted %s, criterion difference %s, threshold %s)",
+    const char* how = !t.value("declared", false)      ? "estimated"
+                      : t.value("contradicted", false) ? "declared, CONTRADICTED by the data"
+                                                       : "declared, checked";
+    char line[200];
+    std::snprintf(line, sizeof line, " (%s: fitted %s, criterion difference %s, threshold %s)", how,
                   t.value("fitted", std::string("-")).c_str(),
                   number_or_dash(t.value("statistic", nlohmann::json()), "%.3g").c_str(),
                   number_or_dash(t.value("threshold", nlohmann::json()), "%.3g").c_str());

@@ -156,6 +156,9 @@ struct RefineSettings {
   // driver is made (resolve_voltage_interval).
   VoltageIntervalChoice voltage_interval_choice = VoltageIntervalChoice::automatic;
   scp::refine::VoltageInterval voltage_interval = scp::refine::VoltageInterval::before;
+  // Whether the fit weighs a declared interval against the data (the user's before or after; not
+  // the interval a driver or a V_since column states).
+  bool check_declared_interval = false;
   // With estimator.voltage_hold foh: how the voltage varied between the rows.
   scp::refine::VoltageShape voltage_shape = scp::refine::VoltageShape::smooth;
   // The nuisance terms (estimated unless fixed) and the model's extensions (issue 28).

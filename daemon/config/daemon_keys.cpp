@@ -411,7 +411,9 @@ void declare_refine_bench(Binder& refine, RefineSettings& out) {
       "issued at t), `estimate` (fit both, keep the better; when the data cannot tell them "
       "apart, refined.voltage_interval reads `undetermined` and `best` keeps off the refined "
       "estimate). `auto`: before, except estimate for a replayed file (--replay or "
-      "driver.type: replay) without a V_since column");
+      "driver.type: replay) without a V_since column. A declared before or after is weighed "
+      "against the data as estimate would; where the data decide for the other, "
+      "voltage_interval_test reads `contradicted` and `best` keeps off the refined estimate");
   refine.choice("voltage_shape", out.voltage_shape, scp::refine::VoltageShape::smooth,
                 scp::refine::kVoltageShapeNames,
                 "with estimator.voltage_hold foh, how the voltage varied between the rows: "

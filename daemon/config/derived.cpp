@@ -23,6 +23,9 @@ void derive_settings(DaemonConfig& cfg) {
 }
 
 void resolve_voltage_interval(RefineSettings& refine, bool driver_stamps_voltage) noexcept {
+  // A user's declaration may be a guess about a file's provenance; a driver's stamps are not.
+  refine.check_declared_interval = refine.voltage_interval_choice == VoltageIntervalChoice::after ||
+                                   refine.voltage_interval_choice == VoltageIntervalChoice::before;
   switch (refine.voltage_interval_choice) {
     case VoltageIntervalChoice::after:
       refine.voltage_interval = scp::refine::VoltageInterval::after;

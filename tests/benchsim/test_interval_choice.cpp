@@ -70,5 +70,36 @@ TEST(IntervalChoice, AWrongIntervalIsNeverDetermined) {
   }
 }
 
+// A declared interval is weighed as `estimate` would weigh it, and the fit under the declaration
+// says when the data determined the other: the deviations grid's held_after_as_before cell
+// (`before` declared on a file logged `after`) took θ1..θ4 6.5-73x their bound while every test
+// passed. The right declaration is checked and stands.
+TEST(IntervalChoice, ADeclaredIntervalTheDataRejectIsContradicted) {
+  BenchFile f = default_bench_file();
+  apply_noise_level("N1", f.sim);
+  f.timing = VoltageTiming::dac_after;
+  f.sim.seed = 3;
+  refine::FitSettings s;
+  s.nuisance.sensor_lag.fixed = false;
+  s.check_declared_interval = true;
+  for (const auto declared : {refine::VoltageInterval::before, refine::VoltageInterval::after}) {
+    s.voltage_interval = declared;
+    const refine::FitResult r = refine::fit(test::window_of(f), test::theta_of(f), s);
+    const refine::IntervalEvidence& e = r.voltage_interval_evidence;
+    const bool wrong = declared == refine::VoltageInterval::before;
+    EXPECT_EQ(r.voltage_interval, declared) << "the fit uses what was declared";
+    EXPECT_TRUE(e.checked);
+    EXPECT_FALSE(e.estimated);
+    EXPECT_EQ(e.contradicted, wrong) << "statistic " << e.statistic;
+    EXPECT_TRUE(e.determined) << "statistic " << e.statistic << " below " << e.threshold;
+  }
+  s.check_declared_interval = false;
+  s.voltage_interval = refine::VoltageInterval::before;
+  const refine::IntervalEvidence unchecked =
+      refine::fit(test::window_of(f), test::theta_of(f), s).voltage_interval_evidence;
+  EXPECT_FALSE(unchecked.checked);
+  EXPECT_FALSE(unchecked.contradicted);
+}
+
 }  // namespace
 }  // namespace scp::tools::benchsim

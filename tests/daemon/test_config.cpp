@@ -227,15 +227,18 @@ TEST(Config, NuisanceTermsAreEstimatedOrHeld) {
 
 // refine.voltage_interval is resolved once the driver is made: `auto` is before when the driver
 // stamps when each voltage took effect, estimate when it does not (a replayed file without
-// V_since); a stated interval is kept whatever the driver.
+// V_since); a stated interval is kept whatever the driver, and a declared before or after (a
+// user's statement, perhaps a guess) is weighed against the data.
 TEST(Config, VoltageIntervalIsResolvedByWhatTheDriverStamps) {
   using scp::refine::VoltageInterval;
   RefineSettings r;
   r.voltage_interval_choice = VoltageIntervalChoice::automatic;
   resolve_voltage_interval(r, true);
   EXPECT_EQ(r.voltage_interval, VoltageInterval::before);
+  EXPECT_FALSE(r.check_declared_interval);
   resolve_voltage_interval(r, false);
   EXPECT_EQ(r.voltage_interval, VoltageInterval::estimate);
+  EXPECT_FALSE(r.check_declared_interval);
   const std::pair<VoltageIntervalChoice, VoltageInterval> stated[] = {
       {VoltageIntervalChoice::before, VoltageInterval::before},
       {VoltageIntervalChoice::after, VoltageInterval::after},
@@ -245,6 +248,7 @@ TEST(Config, VoltageIntervalIsResolvedByWhatTheDriverStamps) {
       r.voltage_interval_choice = choice;
       resolve_voltage_interval(r, stamps);
       EXPECT_EQ(r.voltage_interval, interval) << static_cast<int>(choice) << stamps;
+      EXPECT_EQ(r.check_declared_interval, interval != VoltageInterval::estimate);
     }
   }
 }

@@ -83,6 +83,33 @@ TEST(Validation, UnmodelledResistanceTempcoIsNamedAndNeverRecommended) {
       << s["best_reason"];
 }
 
+// The simulated SCP's rows carry the voltage applied over the interval before each (V_since): a
+// user who declares `after` declares the wrong interval, which moves θ1..θ4 while every residual
+// test passes. The declaration is weighed against the data: the summary says the data contradict
+// it, and `best` keeps off the refined estimate with the declaration and the remedy in its reason.
+TEST(Validation, AWrongDeclaredVoltageIntervalIsContradictedAndNeverRecommended) {
+  TempDir dir;
+  json cfg = noisy_bench(dir, json::object());
+  cfg["refine"]["voltage_interval"] = "after";
+  const ProcessResult r = batch(dir, cfg, "after.yaml");
+  ASSERT_EQ(r.exit_code, 0) << r.err << r.out;
+  std::printf("%s", r.out.c_str());
+  const json s = batch_summary(r);
+  ASSERT_TRUE(s.contains("refined")) << s.dump();
+  const json& refined = s["refined"];
+  EXPECT_EQ(refined["voltage_interval"], "after") << "the fit uses what was declared";
+  ASSERT_TRUE(refined.contains("voltage_interval_test")) << refined.dump();
+  const json& test = refined["voltage_interval_test"];
+  EXPECT_EQ(test["declared"], true) << test.dump();
+  EXPECT_EQ(test["contradicted"], true) << test.dump();
+  EXPECT_GE(test["statistic"].get<double>(), test["threshold"].get<double>()) << test.dump();
+  EXPECT_NE(s["best"], "refined");
+  const std::string reason = s.value("best_reason", std::string());
+  EXPECT_TRUE(contains(reason, "contradict the declared refine.voltage_interval 'after'"))
+      << reason;
+  EXPECT_TRUE(contains(r.out, "declared, CONTRADICTED by the data")) << r.out;
+}
+
 // refine.nuisance.x_zero: `estimate` (the default) frees the sensor's zero, which the fit then
 // finds on a bench whose displacement sensor reads 20 µm at rest; a number holds it there. If
 // `estimate` held the term at 0 (as a default-constructed setting does), the first summary would

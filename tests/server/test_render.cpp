@@ -17,7 +17,7 @@ using nlohmann::json;
 
 TEST(Render, VersionErrorAckWatchAreExactLines) {
   EXPECT_EQ(render_version("1.2.3"),
-            "{\"class\":\"VERSION\",\"proto_major\":1,\"proto_minor\":14,\"release\":\"1.2.3\"}\n");
+            "{\"class\":\"VERSION\",\"proto_major\":1,\"proto_minor\":15,\"release\":\"1.2.3\"}\n");
   EXPECT_EQ(render_error("bad \"x\""), "{\"class\":\"ERROR\",\"message\":\"bad \\\"x\\\"\"}\n");
   EXPECT_EQ(render_ack("reset", true, "done"),
             "{\"class\":\"ACK\",\"message\":\"done\",\"ok\":true,\"request\":\"reset\"}\n");
@@ -370,6 +370,35 @@ TEST(Render, AnUndeterminedVoltageIntervalIsSaidAndNotRecommended) {
   j = json::parse(render_estimate(s.estimate, &r, 12.5));
   EXPECT_EQ(j["best"], "refined");
   EXPECT_FALSE(j["refined"].contains("voltage_interval_test"));
+}
+
+// A declared interval the data were weighed against: the test says so, and where the data
+// determined the other interval `best` keeps off the refined estimate, naming the declaration and
+// the remedy; STATUS says `contradicted`.
+TEST(Render, AContradictedDeclaredIntervalIsSaidAndNotRecommended) {
+  const PublishedState s = test::sample_state();
+  refine::RefinedView r = sample_refined();
+  r.voltage_interval = scp::refine::VoltageInterval::before;
+  r.voltage_interval_evidence = {
+      .determined = true, .statistic = 40.0, .threshold = 6.6, .checked = true};
+  json j = json::parse(render_estimate(s.estimate, &r, 12.5));
+  EXPECT_EQ(j["best"], "refined");
+  EXPECT_EQ(j["refined"]["voltage_interval"], "before");
+  EXPECT_EQ(j["refined"]["voltage_interval_test"]["declared"], true);
+  EXPECT_EQ(j["refined"]["voltage_interval_test"]["contradicted"], false);
+
+  r.voltage_interval_evidence.contradicted = true;
+  j = json::parse(render_estimate(s.estimate, &r, 12.5));
+  EXPECT_EQ(j["best"], "paper");
+  EXPECT_EQ(j["refined"]["voltage_interval"], "before");
+  EXPECT_EQ(j["refined"]["voltage_interval_test"]["contradicted"], true);
+  const std::string reason = j["best_reason"].get<std::string>();
+  EXPECT_NE(reason.find("contradict the declared refine.voltage_interval 'before'"),
+            std::string::npos)
+      << reason;
+  EXPECT_NE(reason.find("estimate"), std::string::npos) << reason;
+  const json status = json::parse(render_status(s, ServerInfo{"0.1.0", "sim", "", ""}, &r));
+  EXPECT_EQ(status["refine"]["voltage_interval"], "contradicted");
 }
 
 // The metrics carry each estimate's verdict per block as a state set, its fit %, and which

@@ -63,7 +63,17 @@ std::string block_advice(const char* block, const BlockReport& b, const Validati
 
 std::string interval_advice(const RefinedView& v) {
   const scp::refine::IntervalEvidence& e = v.voltage_interval_evidence;
-  char text[320];
+  char text[400];
+  if (e.contradicted) {
+    const char* declared = scp::refine::to_text(v.voltage_interval);
+    std::snprintf(text, sizeof text,
+                  "the data contradict the declared refine.voltage_interval '%s': T fits the other "
+                  "interval better (criterion difference %.3g, at least %.3g decides), and the "
+                  "refined θ1..θ4 depend on it; declare the other interval, or set "
+                  "refine.voltage_interval: estimate",
+                  declared, e.statistic, e.threshold);
+    return text;
+  }
   std::snprintf(text, sizeof text,
                 "the voltage's interval is undetermined: the window cannot tell whether a row's V "
                 "drove the interval before or after its sample (criterion difference %.3g, below "
@@ -107,7 +117,7 @@ std::string failure_advice(const ValidationReport& report) {
 Best best_of(const RefinedView* v, double now_t) noexcept {
   if (v == nullptr || !v->valid) return Best::paper;
   if (refined_is_best(*v, now_t) && v->validated && passed(v->validation) &&
-      !interval_undetermined(*v))
+      !interval_undetermined(*v) && !interval_contradicted(*v))
     return Best::refined;
   return v->paper_validated && passed(v->paper_validation) ? Best::paper : Best::none;
 }
@@ -122,13 +132,15 @@ BestChoice best_estimate(const RefinedView* v, double now_t) {
           : now_t - v->fitted_at_t > 3.0 * v->interval_s ? "the refined fit is older than 3 "
                                                            "refine.interval_s"
                                                          : "the refined σ is not finite";
-    // What its validation found often says why (a missing term sends the solver astray).
+    // What its validation found often says why (a missing term sends the solver astray), and so
+    // does a declared interval the data reject.
     if (v->validated && !passed(v->validation)) why += " (" + failure_advice(v->validation) + ")";
+    if (interval_contradicted(*v)) why += " (" + interval_advice(*v) + ")";
   } else if (!v->validated) {
     why = "the refined fit is not validated";
   } else if (!passed(v->validation)) {
     why = "refined " + failure_advice(v->validation);
-  } else if (interval_undetermined(*v)) {
+  } else if (interval_undetermined(*v) || interval_contradicted(*v)) {
     why = interval_advice(*v);
   } else {
     return {Best::refined, ""};

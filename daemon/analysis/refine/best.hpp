@@ -24,12 +24,14 @@ bool passed(const scp::refine::ValidationReport& report) noexcept;
 Best best_of(const RefinedView* v, double now_t) noexcept;
 
 // `refined` when refined_is_best, its validation passed for both blocks and its voltage interval
-// is not undetermined (interval_undetermined); else `paper` when the
+// is neither undetermined (interval_undetermined) nor contradicted by the data
+// (interval_contradicted); else `paper` when the
 // paper law's prediction passed on the same window; else `none`. Before any fit (v null or not
 // valid) the paper law is all there is and nothing has tested it: `paper`, with that reason.
 BestChoice best_estimate(const RefinedView* v, double now_t);
 
-// Why an undetermined interval keeps `best` off the refined estimate, and the remedy.
+// Why an undetermined or contradicted interval keeps `best` off the refined estimate, and the
+// remedy.
 std::string interval_advice(const RefinedView& v);
 
 // One line on a failed validation: the block, its decisive test with its effect, and the remedy.

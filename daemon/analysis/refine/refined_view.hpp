@@ -98,6 +98,12 @@ inline bool interval_undetermined(const RefinedView& v) noexcept {
   return e.estimated && !e.determined && !e.equivalent;
 }
 
+// Whether the latest fit's declared interval is one the window's data reject
+// (refine::IntervalEvidence::contradicted): its θ1..θ4 are then the declaration's.
+inline bool interval_contradicted(const RefinedView& v) noexcept {
+  return v.voltage_interval_evidence.contradicted;
+}
+
 // Whether the refined fit is current at loop time `now_t`: its latest fit converged, is at most 3
 // intervals old and every σ is finite. Whether it is recommended also takes its validation
 // (best_estimate, best.hpp).

@@ -261,6 +261,7 @@ scp::refine::FitSettings Refiner::make_fit_settings() const {
   fit_settings.landing_timing_jitter = settings_.estimate_link_timing;
   fit_settings.voltage_hold = voltage_hold_;
   fit_settings.voltage_interval = settings_.voltage_interval;
+  fit_settings.check_declared_interval = settings_.check_declared_interval;
   fit_settings.voltage_shape = settings_.voltage_shape;
   fit_settings.nuisance = settings_.nuisance;
   fit_settings.extensions = settings_.extensions;

@@ -172,7 +172,8 @@ void put_bench_terms(json& o, const refine::RefinedView& r) {
 // "voltage_interval" (before, after, or undetermined where the data could not tell and θ depends
 // on it), a smooth voltage's "voltage_switches" where it has any (with how many the fit placed
 // each in its own interval, and their phases' RMS σ), and, when the fit estimated the
-// interval, "voltage_interval_test": what it fitted with and the criterion's evidence.
+// interval or weighed a declared one, "voltage_interval_test": what it fitted with and the
+// criterion's evidence.
 void put_voltage_interval(json& o, const refine::RefinedView& r) {
   const bool undetermined = refine::interval_undetermined(r);
   o["voltage_interval"] = undetermined ? "undetermined" : scp::refine::to_text(r.voltage_interval);
@@ -185,8 +186,12 @@ void put_voltage_interval(json& o, const refine::RefinedView& r) {
     o["voltage_switches"] = switches;
   }
   const scp::refine::IntervalEvidence& e = r.voltage_interval_evidence;
-  if (!e.estimated) return;
+  if (!e.estimated && !e.checked) return;
   json test = {{"fitted", scp::refine::to_text(r.voltage_interval)}, {"determined", e.determined}};
+  if (e.checked) {
+    test["declared"] = true;
+    test["contradicted"] = e.contradicted;
+  }
   put_finite(test, "statistic", e.statistic);
   put_finite(test, "threshold", e.threshold);
   if (e.compared) {
@@ -398,6 +403,7 @@ std::string render_status(const PublishedState& state, const ServerInfo& info,
     if (refined->valid) {
       put_finite(r, "last_fit_duration_s", refined->duration_s);
       if (refine::interval_undetermined(*refined)) r["voltage_interval"] = "undetermined";
+      if (refine::interval_contradicted(*refined)) r["voltage_interval"] = "contradicted";
     }
     out["refine"] = r;
   }

@@ -26,7 +26,9 @@ inline constexpr int kProtoMajor = 1;
 // 1.11: refined.voltage_switches (a smooth voltage's switches and their phase, issue 28).
 // 1.13: refined.voltage_switches.placed and phase_sigma (switches placed one by one, issue 28).
 // 1.14: refined.warm_fallback structure_found (a warm refit whose validation finds structure).
-inline constexpr int kProtoMinor = 14;
+// 1.15: a declared voltage interval weighed against the data: voltage_interval_test declared and
+// contradicted, STATUS.refine.voltage_interval `contradicted` (issue 28).
+inline constexpr int kProtoMinor = 15;
 
 std::string render_version(std::string_view release);
 std::string render_error(std::string_view message);
