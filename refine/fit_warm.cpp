@@ -27,8 +27,9 @@ bool same_settings(const FitSettings& a, const FitSettings& b) {
          a.sample_timing_jitter == b.sample_timing_jitter &&
          a.outlier_threshold == b.outlier_threshold &&
          a.landing_timing_jitter == b.landing_timing_jitter && a.voltage_hold == b.voltage_hold &&
-         a.voltage_interval == b.voltage_interval && a.voltage_shape == b.voltage_shape &&
-         same(a.nuisance.x_zero, b.nuisance.x_zero) &&
+         a.voltage_interval == b.voltage_interval &&
+         a.check_declared_interval == b.check_declared_interval &&
+         a.voltage_shape == b.voltage_shape && same(a.nuisance.x_zero, b.nuisance.x_zero) &&
          same(a.nuisance.ambient_offset, b.nuisance.ambient_offset) &&
          same(a.nuisance.ambient_drift, b.nuisance.ambient_drift) &&
          same(a.nuisance.sensor_lag, b.nuisance.sensor_lag) &&
