@@ -60,17 +60,17 @@ struct IntervalEvidence {
 // A bias of a quarter σ costs an estimate 3 % of its RMS error and its 2σ interval 1 % coverage.
 inline constexpr double kEquivalentThetaShift = 0.25;
 
-// A smooth voltage's switches (refine/voltage_timing.hpp, hold_voltage_switches): how many a
-// window has and where in their intervals the fit put them (0: just after the previous sample, 1:
-// at the row's own instant).
-// `placed`: how many of them the fit then placed each in its own interval, from its residuals
-// (refine/switch_placement.hpp), and their phases' RMS standard deviation (in intervals).
 // A switch the fit placed in its own interval: its row's t and where it fell (voltage_since).
 struct PlacedSwitch {
   double t = 0.0;
   double since = 0.0;
 };
 
+// A smooth voltage's switches (refine/voltage_timing.hpp, hold_voltage_switches): how many a
+// window has and where in their intervals the fit put them (0: just after the previous sample, 1:
+// at the row's own instant).
+// `placed`: how many of them the fit then placed each in its own interval, from its residuals
+// (refine/switch_placement.hpp), and their phases' RMS standard deviation (in intervals).
 struct SwitchPhase {
   std::size_t count = 0;
   double phase = 0.0;

@@ -116,8 +116,7 @@ std::string failure_advice(const ValidationReport& report) {
 
 Best best_of(const RefinedView* v, double now_t) noexcept {
   if (v == nullptr || !v->valid) return Best::paper;
-  if (refined_is_best(*v, now_t) && v->validated && passed(v->validation) &&
-      !interval_undetermined(*v) && !interval_contradicted(*v))
+  if (refined_is_best(*v, now_t) && v->validated && passed(v->validation) && !interval_in_doubt(*v))
     return Best::refined;
   return v->paper_validated && passed(v->paper_validation) ? Best::paper : Best::none;
 }
@@ -140,7 +139,7 @@ BestChoice best_estimate(const RefinedView* v, double now_t) {
     why = "the refined fit is not validated";
   } else if (!passed(v->validation)) {
     why = "refined " + failure_advice(v->validation);
-  } else if (interval_undetermined(*v) || interval_contradicted(*v)) {
+  } else if (interval_in_doubt(*v)) {
     why = interval_advice(*v);
   } else {
     return {Best::refined, ""};

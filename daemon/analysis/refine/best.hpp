@@ -24,8 +24,8 @@ bool passed(const scp::refine::ValidationReport& report) noexcept;
 Best best_of(const RefinedView* v, double now_t) noexcept;
 
 // `refined` when refined_is_best, its validation passed for both blocks and its voltage interval
-// is neither undetermined (interval_undetermined) nor contradicted by the data
-// (interval_contradicted); else `paper` when the
+// is not in doubt (interval_in_doubt: undetermined, or contradicted by the data); else `paper`
+// when the
 // paper law's prediction passed on the same window; else `none`. Before any fit (v null or not
 // valid) the paper law is all there is and nothing has tested it: `paper`, with that reason.
 BestChoice best_estimate(const RefinedView* v, double now_t);

@@ -68,7 +68,7 @@ void RefineWorker::stop() noexcept {
 }
 
 void RefineWorker::note_interval(const RefinedView& view) {
-  if (interval_noted_ || !(interval_undetermined(view) || interval_contradicted(view))) return;
+  if (interval_noted_ || !interval_in_doubt(view)) return;
   interval_noted_ = true;
   spdlog::warn("refinement: {}", interval_advice(view));
 }

@@ -104,6 +104,11 @@ inline bool interval_contradicted(const RefinedView& v) noexcept {
   return v.voltage_interval_evidence.contradicted;
 }
 
+// Either: the latest fit's θ1..θ4 rest on an interval the data did not confirm.
+inline bool interval_in_doubt(const RefinedView& v) noexcept {
+  return interval_undetermined(v) || interval_contradicted(v);
+}
+
 // Whether the refined fit is current at loop time `now_t`: its latest fit converged, is at most 3
 // intervals old and every σ is finite. Whether it is recommended also takes its validation
 // (best_estimate, best.hpp).
