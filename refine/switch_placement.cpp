@@ -293,6 +293,17 @@ bool prepare_placement(std::span<const WindowSample> prepared, const FitResult& 
   return true;
 }
 
+// Gauss–Newton's step for the phases with the slots profiled out, and the weighted cost it takes
+// off (bᵀδ); false where the step is not finite.
+bool phase_step(Placement& p, Eigen::VectorXd& delta, double& decrease) {
+  const Sweep& s = p.sweep;
+  // The score of the phases with the slots' own score profiled out (0 at a converged fit).
+  const Eigen::VectorXd b = s.score - s.cross * p.op->slots_solve(s.slots_score);
+  delta = conjugate_gradients(*p.op, b, p.diagonal);
+  decrease = b.dot(delta);
+  return delta.allFinite() && std::isfinite(decrease);
+}
+
 }  // namespace
 
 Matrix6 placed_switches_covariance(std::span<const WindowSample> prepared, const FitResult& fit,
@@ -310,6 +321,15 @@ Matrix6 placed_switches_covariance(std::span<const WindowSample> prepared, const
   return share;
 }
 
+double placement_decrease(std::span<const WindowSample> prepared, const FitResult& fit,
+                          const std::array<bool, 6>& known) {
+  Placement p;
+  if (!prepare_placement(prepared, fit, known, p)) return 0.0;
+  Eigen::VectorXd delta;
+  double decrease = 0.0;
+  return phase_step(p, delta, decrease) ? std::max(decrease, 0.0) : 0.0;
+}
+
 SwitchPlacement place_voltage_switches(std::span<WindowSample> prepared, const FitResult& fit,
                                        const std::array<bool, 6>& known, PlacementStep step) {
   SwitchPlacement out;
@@ -317,11 +337,8 @@ SwitchPlacement place_voltage_switches(std::span<WindowSample> prepared, const F
   if (!prepare_placement(prepared, fit, known, p)) return out;
   const Sweep& s = p.sweep;
   const Eigen::VectorXd& diagonal = p.diagonal;
-  // The score of the phases with the slots' own score profiled out (0 at a converged fit).
-  const Eigen::VectorXd b = s.score - s.cross * p.op->slots_solve(s.slots_score);
-  const Eigen::VectorXd delta = conjugate_gradients(*p.op, b, diagonal);
-  if (!delta.allFinite()) return out;
-  out.decrease = b.dot(delta);
+  Eigen::VectorXd delta;
+  if (!phase_step(p, delta, out.decrease)) return out;
   out.price =
       static_cast<double>(s.switches.size()) * std::log(static_cast<double>(prepared.size()));
   if (step == PlacementStep::needs_evidence && !(out.decrease > out.price)) return out;

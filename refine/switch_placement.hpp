@@ -63,6 +63,24 @@ SwitchPlacement place_voltage_switches(std::span<WindowSample> prepared, const F
 Matrix6 placed_switches_covariance(std::span<const WindowSample> prepared, const FitResult& fit,
                                    const std::array<bool, 6>& known);
 
+// What switches at phases of their own (a generator on a clock of its own) add to the Cramér–Rao
+// bound of θ: cramer_rao_bound's experiment (`window` as recorded, read with foh, its switches
+// held at mid-interval), the phases unknowns beside θ with their prior, as
+// placed_switches_covariance counts them at a fit. `switches`: how many the window has. Zero
+// where it has none to place.
+Matrix6 switch_phases_bound_share(std::span<const WindowSample> window, const Vector6& theta,
+                                  const InitialState& initial, const Vector2& noise_sigma,
+                                  const std::array<bool, 6>& known,
+                                  const NuisanceSettings& nuisance,
+                                  const ExtensionSettings& extensions, const Tempcos& truth,
+                                  std::size_t& switches);
+
+// The weighted cost that placing the switches anew would take off `fit` on `prepared` (the
+// decrease of place_voltage_switches' step, nothing moved; 0 where it would place nothing): what a
+// model would gain from phases of its own, where `prepared`'s were placed for another.
+double placement_decrease(std::span<const WindowSample> prepared, const FitResult& fit,
+                          const std::array<bool, 6>& known);
+
 // The switch rows of `prepared` (a foh, smooth window after prepare_window) where they now fall.
 std::vector<PlacedSwitch> placed_switches(std::span<const WindowSample> prepared);
 

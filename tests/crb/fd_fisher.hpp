@@ -6,6 +6,7 @@
 
 #include <Eigen/Dense>
 #include <array>
+#include <cmath>
 #include <span>
 #include <vector>
 
@@ -71,6 +72,100 @@ inline refine::Matrix6 finite_difference_crb(std::span<const refine::WindowSampl
   const Eigen::Matrix<double, 9, 9> cov = scale.cwiseInverse().asDiagonal() *
                                           (r_inv * r_inv.transpose()) *
                                           scale.cwiseInverse().asDiagonal();
+  return cov.topLeftCorner<6, 6>();
+}
+
+// The rows of `window` where the held voltage steps by more than `step_v`, the switches of a
+// PRBS.
+inline std::vector<std::size_t> switch_rows(std::span<const refine::WindowSample> window,
+                                            double step_v) {
+  std::vector<std::size_t> rows;
+  for (std::size_t k = 1; k < window.size(); ++k)
+    if (std::abs(window[k].voltage - window[k - 1].voltage) > step_v) rows.push_back(k);
+  return rows;
+}
+
+// simulate_outputs with each switch of `rows` a fraction `phases` of its interval late: the
+// previous row's voltage held until then, the row's after.
+inline std::vector<double> simulate_switched(std::span<const refine::WindowSample> window,
+                                             const Eigen::Matrix<double, 9, 1>& p,
+                                             const std::vector<std::size_t>& rows,
+                                             const Eigen::VectorXd& phases) {
+  drivers::sim::PlantParams params;
+  params.m = 1.0;
+  params.R = 1.0;
+  params.b = p[0];
+  params.alpha1 = p[1];
+  params.k = p[2];
+  params.alpha2 = p[3];
+  params.Cth = 1.0 / p[5];
+  params.lambda = p[4] * params.Cth;
+  drivers::sim::Plant plant(params, 20);
+  plant.set_state(p[6], p[7], p[8]);
+  std::vector<double> out;
+  out.reserve(2 * window.size());
+  std::size_t next = 0;
+  for (std::size_t k = 0; k < window.size(); ++k) {
+    if (k > 0) {
+      const double dt = window[k].t - window[k - 1].t;
+      if (next < rows.size() && rows[next] == k) {
+        const double phase = phases[static_cast<Eigen::Index>(next++)];
+        plant.step(window[k - 1].voltage, phase * dt);
+        plant.step(window[k].voltage, (1.0 - phase) * dt);
+      } else {
+        plant.step(window[k].voltage, dt);
+      }
+    }
+    out.push_back(plant.x());
+    out.push_back(plant.tbar());
+  }
+  return out;
+}
+
+// The bound of θ with the switches of `rows` at phases of their own, unknowns beside θ and the
+// initial state, each with the prior of a switch anywhere in its interval (variance 1/12 about ½,
+// where they are taken to be): finite differences of drivers/sim's plant, the prior as rows of
+// the Jacobian.
+inline refine::Matrix6 finite_difference_crb_with_phases(
+    std::span<const refine::WindowSample> window, const refine::Vector6& theta,
+    const refine::InitialState& initial, const refine::Vector2& noise_sigma,
+    const std::vector<std::size_t>& rows) {
+  Eigen::Matrix<double, 9, 1> p;
+  p << theta, initial;
+  const auto switches = static_cast<Eigen::Index>(rows.size());
+  const Eigen::VectorXd phases = Eigen::VectorXd::Constant(switches, 0.5);
+  const Eigen::Index columns = 9 + switches;
+  const auto samples = static_cast<Eigen::Index>(2 * window.size());
+  Eigen::MatrixXd jac = Eigen::MatrixXd::Zero(samples + switches, columns);
+  const std::array<double, 3> state_step{1e-9, 1e-8, 1e-4};  // m, m/s, °C
+  for (Eigen::Index j = 0; j < columns; ++j) {
+    Eigen::Matrix<double, 9, 1> up = p, down = p;
+    Eigen::VectorXd up_phases = phases, down_phases = phases;
+    double h = 1e-3;  // of an interval
+    if (j < 9) {
+      h = j < 6 ? 1e-5 * std::abs(p[j]) : state_step[static_cast<std::size_t>(j - 6)];
+      up[j] += h;
+      down[j] -= h;
+    } else {
+      up_phases[j - 9] += h;
+      down_phases[j - 9] -= h;
+    }
+    const auto yu = simulate_switched(window, up, rows, up_phases);
+    const auto yd = simulate_switched(window, down, rows, down_phases);
+    for (Eigen::Index r = 0; r < samples; ++r) {
+      const auto u = static_cast<std::size_t>(r);
+      jac(r, j) = (yu[u] - yd[u]) / (2.0 * h) / noise_sigma[r % 2];
+    }
+  }
+  for (Eigen::Index i = 0; i < switches; ++i) jac(samples + i, 9 + i) = std::sqrt(12.0);
+  const Eigen::VectorXd scale = jac.colwise().norm().transpose();
+  const Eigen::MatrixXd js = jac * scale.cwiseInverse().asDiagonal();
+  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(js);
+  const Eigen::MatrixXd r = qr.matrixQR().topRows(columns).triangularView<Eigen::Upper>();
+  const Eigen::MatrixXd r_inv =
+      r.triangularView<Eigen::Upper>().solve(Eigen::MatrixXd::Identity(columns, columns));
+  const Eigen::MatrixXd cov = scale.cwiseInverse().asDiagonal() * (r_inv * r_inv.transpose()) *
+                              scale.cwiseInverse().asDiagonal();
   return cov.topLeftCorner<6, 6>();
 }
 

@@ -4,12 +4,14 @@
 #include <stdexcept>
 #include <vector>
 
+#include "refine/switch_placement.hpp"
+
 namespace scp::tools::crb {
 
 nlohmann::json crb_report(const Experiment& e, const NoiseLevel& noise,
                           const std::array<bool, 6>& known, double ambient_c,
                           double temperature_max_c, const refine::NuisanceSettings& nuisance,
-                          const refine::ExtensionSettings& extensions) {
+                          const refine::ExtensionSettings& extensions, bool switch_phases) {
   if (!(std::isfinite(noise.x) && noise.x > 0.0 && std::isfinite(noise.temperature) &&
         noise.temperature > 0.0)) {
     throw std::invalid_argument(
@@ -19,9 +21,13 @@ nlohmann::json crb_report(const Experiment& e, const NoiseLevel& noise,
   // An estimated lag is bounded at the plant's (a held one at its declared value).
   refine::NuisanceSettings at_truth = nuisance;
   if (!at_truth.sensor_lag.fixed) at_truth.sensor_lag.value = e.sensor_lag_s;
-  const refine::Matrix6 cov = refine::cramer_rao_bound(e.window, e.theta, e.initial,
-                                                       refine::Vector2(noise.x, noise.temperature),
-                                                       known, at_truth, extensions, e.tempcos);
+  const refine::Vector2 sigma_noise(noise.x, noise.temperature);
+  refine::Matrix6 cov = refine::cramer_rao_bound(e.window, e.theta, e.initial, sigma_noise, known,
+                                                 at_truth, extensions, e.tempcos);
+  std::size_t switches = 0;
+  if (switch_phases)
+    cov += refine::switch_phases_bound_share(e.window, e.theta, e.initial, sigma_noise, known,
+                                             at_truth, extensions, e.tempcos, switches);
 
   std::vector<double> theta(6), sigma(6), rel(6);
   std::vector<bool> known_list(6);
@@ -57,6 +63,7 @@ nlohmann::json crb_report(const Experiment& e, const NoiseLevel& noise,
     extended.push_back("stiffness_softening");
   if (extensions.cooling_tempco != refine::ExtensionMode::off) extended.push_back("cooling_tempco");
   out["extensions_estimated"] = std::move(extended);
+  out["switch_phases"] = {{"bounded", switch_phases}, {"switches", switches}};
   out["noise"] = {{"x", noise.x}, {"temperature", noise.temperature}};
   out["period_s"] = e.period_s;
   out["duration_s"] = e.duration_s;

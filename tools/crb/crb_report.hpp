@@ -23,10 +23,14 @@ struct NoiseLevel {
 //   extensions_estimated (names), noise, window
 //   {t_begin, t_end, samples}, initial_state, excitation {mean_v, mean_v2, max_v}, thermal
 //   {mean_tbar, max_tbar, max_temperature_c, temperature_max_c, within_limit}.
+// With `switch_phases` (the excitation's switches at phases of their own: a generator on a clock
+// of its own, as scp-benchsim --generator-clock-ppm makes it) the phases are bounded as unknowns
+// beside θ (refine::switch_phases_bound_share), and switch_phases {bounded, switches} says so.
 // Throws std::invalid_argument when a noise level is not > 0 (a noise-free channel has no bound).
 nlohmann::json crb_report(const Experiment& experiment, const NoiseLevel& noise,
                           const std::array<bool, 6>& known, double ambient_c,
                           double temperature_max_c, const refine::NuisanceSettings& nuisance = {},
-                          const refine::ExtensionSettings& extensions = {});
+                          const refine::ExtensionSettings& extensions = {},
+                          bool switch_phases = false);
 
 }  // namespace scp::tools::crb
