@@ -206,13 +206,27 @@ FitResult fit_prepared(std::span<const WindowSample> window, const Vector6& thet
 constexpr int kPlacementRounds = 6;
 constexpr double kSettledDecrease = 1.0;
 
-}  // namespace
-
-FitResult fit_with_placed_switches(std::span<WindowSample> prepared, const FitSettings& settings,
-                                   FitResult fitted, PlacementStep first) {
-  FitSettings refit = settings;
-  refit.search_scale = false;  // θ1..θ4's common scale is the fitted one's
+// The passes and iterations of the fits a result replaced, which its own counts leave out.
+struct FitCost {
   int iterations = 0, evaluations = 0;
+  void add(const FitResult& r) {
+    iterations += r.iterations;
+    evaluations += r.evaluations;
+  }
+};
+
+// Whether two fits kept the same extensions.
+bool same_extensions(const Extensions& a, const Extensions& b) {
+  for (const ExtensionSlot& e : kExtensionTable)
+    if ((a.*e.estimate).kept != (b.*e.estimate).kept) return false;
+  return true;
+}
+
+// The rounds of placement from `fitted`, each followed by θ's refit of the same model; what the
+// replaced fits cost is added to `cost`.
+FitResult placement_rounds(std::span<WindowSample> prepared, const FitSettings& settings,
+                           const FitSettings& refit, FitResult fitted, PlacementStep first,
+                           FitCost& cost) {
   for (int round = 0; round < kPlacementRounds && fitted.validated; ++round) {
     const SwitchPlacement placed = place_voltage_switches(
         prepared, fitted, settings.known, round == 0 ? first : PlacementStep::follows);
@@ -220,26 +234,43 @@ FitResult fit_with_placed_switches(std::span<WindowSample> prepared, const FitSe
     fitted.voltage_switches.placed = placed.placed;
     fitted.voltage_switches.rms_phase_sigma = placed.rms_phase_sigma;
     if (!(placed.decrease >= kSettledDecrease)) break;
-    iterations += fitted.iterations;
-    evaluations += fitted.evaluations;
+    cost.add(fitted);
     FitResult next = refit_same_window(prepared, fitted, refit);
     if (!next.validated) break;  // the fit of the last phases that ran to its verdict stands
     next.voltage_switches = fitted.voltage_switches;
     fitted = std::move(next);
   }
-  // The rounds kept the extensions the fit at one phase chose; `auto` chooses again at the
-  // placed phases, where a switch's misplaced heat no longer passes for a missing term.
+  return fitted;
+}
+
+}  // namespace
+
+FitResult fit_with_placed_switches(std::span<WindowSample> prepared, const FitSettings& settings,
+                                   FitResult fitted, PlacementStep first) {
+  FitSettings refit = settings;
+  refit.search_scale = false;  // θ1..θ4's common scale is the fitted one's
+  FitCost cost;
+  fitted = placement_rounds(prepared, settings, refit, std::move(fitted), first, cost);
+  // The rounds kept the model of the fit at one phase (with `auto`, fit_placing_switches's
+  // extended one); `auto` chooses at the placed phases, where a switch's misplaced heat no
+  // longer passes for a missing term, each model weighed at phases of its own. Where the choice
+  // changed the model, the phases are placed again for the model chosen.
   if (has_automatic(settings.extensions) && fitted.voltage_switches.placed > 0) {
-    iterations += fitted.iterations;
-    evaluations += fitted.evaluations;
-    FitResult next = fit_prepared(prepared, fitted.theta, refit);
-    if (next.validated) {
+    FitResult next = reselect_extensions(prepared, fitted, refit);
+    if (next.validated && next.converged) {
+      const bool changed = !same_extensions(next.extensions, fitted.extensions);
+      cost.add(fitted);
       next.voltage_switches = fitted.voltage_switches;
       fitted = std::move(next);
+      if (changed)
+        fitted = placement_rounds(prepared, settings, refit, std::move(fitted),
+                                  PlacementStep::follows, cost);
+    } else {
+      cost.add(next);
     }
   }
-  fitted.iterations += iterations;
-  fitted.evaluations += evaluations;
+  fitted.iterations += cost.iterations;
+  fitted.evaluations += cost.evaluations;
   // σ counts the phases as the unknowns they are.
   if (fitted.voltage_switches.placed > 0 && fitted.validated)
     add_covariance_share(fitted, placed_switches_covariance(prepared, fitted, settings.known));
@@ -254,6 +285,25 @@ bool places_switches(const FitSettings& settings, const SwitchPhase& switches) {
 
 namespace {
 
+// The fit of a window whose switches may be placed: placed from the fit at one phase where the
+// data ask for it. With an `auto` extension the choice waits for the phases: they are placed for
+// the extended model, which holds every model the choice can make, and the choice is then made
+// at them (fit_with_placed_switches); made at one phase where nothing was placed.
+FitResult fit_placing_switches(std::span<WindowSample> prepared, const Vector6& theta_start,
+                               const FitSettings& settings, const SwitchPhase& switches) {
+  const bool automatic = has_automatic(settings.extensions);
+  FitResult result = automatic ? fit_extended(prepared, theta_start, settings)
+                               : fit_staged(prepared, theta_start, settings);
+  result.voltage_switches = switches;
+  result = fit_with_placed_switches(prepared, settings, std::move(result),
+                                    PlacementStep::needs_evidence);
+  if (automatic && result.voltage_switches.placed == 0 && is_extended(result, settings)) {
+    result = eliminate_extensions(prepared, std::move(result), settings, ExtensionWeighing::bic);
+    result.voltage_switches = switches;
+  }
+  return result;
+}
+
 // The staged fit of the window read under `interval`, its switches at `switches` and then, where
 // it has any, each where the residuals place it.
 FitResult fit_under(std::span<const WindowSample> window, const Vector6& theta_start,
@@ -262,11 +312,13 @@ FitResult fit_under(std::span<const WindowSample> window, const Vector6& theta_s
   std::vector<WindowSample> storage;
   const std::span<const WindowSample> prepared = prepare_window(
       window, settings.voltage_hold, interval, storage, settings.voltage_shape, switches.phase);
-  FitResult result = fit_prepared(prepared, theta_start, settings);
-  result.voltage_switches = switches;
-  if (places_switches(settings, switches) && prepared.data() == storage.data())
-    result = fit_with_placed_switches(storage, settings, std::move(result),
-                                      PlacementStep::needs_evidence);
+  FitResult result;
+  if (places_switches(settings, switches) && prepared.data() == storage.data()) {
+    result = fit_placing_switches(storage, theta_start, settings, switches);
+  } else {
+    result = fit_prepared(prepared, theta_start, settings);
+    result.voltage_switches = switches;
+  }
   result.voltage_interval = interval;
   return result;
 }

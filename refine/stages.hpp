@@ -138,9 +138,36 @@ FitResult fit_staged(std::span<const WindowSample> prepared, const Vector6& thet
 // stages, then each `auto` one dropped in turn (the joint stage from that solution with it held
 // at 0) and left out where Schwarz's BIC (refine/information_criteria.hpp) says it does not earn
 // its place. The result is the model chosen, each `auto` extension with the criterion's
-// difference (with minus without) that decided.
+// difference (with minus without) that decided. Its two steps follow.
 FitResult select_extensions(std::span<const WindowSample> prepared, const Vector6& theta_start,
                             const FitSettings& settings);
+
+// The staged fit with every `auto` extension on; where it does not converge, the model without
+// them (the choice then made: none kept).
+FitResult fit_extended(std::span<const WindowSample> prepared, const Vector6& theta_start,
+                       const FitSettings& settings);
+
+// Whether `fit` converged with every `auto` extension of `settings` in its model (fit_extended's
+// extended fit, not its fallback): what the choice starts from.
+bool is_extended(const FitResult& fit, const FitSettings& settings);
+
+// How the choice weighs a model. `bic`: Schwarz's criterion. `own_phases`: on a window whose
+// switches were placed (refine/switch_placement.hpp) for the model of whichever fit placed them,
+// the criterion less the cost phases of the model's own would take off it (placement_decrease): a
+// model judged at phases placed for another pays for their misfit, and the term they were placed
+// with would be kept for what the phases absorbed.
+enum class ExtensionWeighing { bic, own_phases };
+
+// The choice from `extended`, a fit of `prepared` for which is_extended holds: each `auto`
+// extension dropped in turn and left out where the model without it converges and is no worse.
+FitResult eliminate_extensions(std::span<const WindowSample> prepared, FitResult extended,
+                               const FitSettings& settings, ExtensionWeighing weighing);
+
+// The choice made again at `fitted`, a fit of `prepared` whose switches have been placed: from
+// `fitted` itself where it is extended, else from the joint stage that frees every `auto`
+// extension from its solution (not converged where that does not), weighed `own_phases`.
+FitResult reselect_extensions(std::span<const WindowSample> prepared, const FitResult& fitted,
+                              const FitSettings& settings);
 
 // The end of a fit whose stages returned `stop`: θ and what the stages estimated into `result`,
 // then, when they all ran, the covariance at the solution and the verdict (converged, stop,
