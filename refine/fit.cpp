@@ -16,7 +16,9 @@
 #include <cmath>
 #include <vector>
 
+#include "refine/fitted_sweep.hpp"
 #include "refine/heater_power.hpp"
+#include "refine/information_criteria.hpp"
 #include "refine/interval_averaging.hpp"
 #include "refine/stages.hpp"
 #include "refine/switch_placement.hpp"
@@ -323,22 +325,79 @@ FitResult fit_under(std::span<const WindowSample> window, const Vector6& theta_s
   return result;
 }
 
-// An interval the window could not tell: the fit under the other one too. θ1..θ4 either move with
-// it (the interval stays undetermined) or not (equivalent); every σ takes the spread.
+VoltageInterval other_interval(VoltageInterval interval) {
+  return interval == VoltageInterval::after ? VoltageInterval::before : VoltageInterval::after;
+}
+
+// Schwarz's criterion of a fit over both channels: their residuals, the slots it estimated and
+// the switches it placed (ln n each, as the placement's first step prices them). NaN where a
+// channel has no residual to weigh (noise-free data).
+double joint_criterion(const FitResult& r, const std::array<bool, 6>& known) {
+  const double n = static_cast<double>(r.samples);
+  const ChannelResiduals channels[2] = {{r.residual_rms[0] * r.residual_rms[0] * n, r.samples},
+                                        {r.residual_rms[1] * r.residual_rms[1] * n, r.samples}};
+  int parameters = static_cast<int>(r.voltage_switches.placed);
+  for (const bool f : fitted_slots(r, known)) parameters += f ? 1 : 0;
+  return bic(channels, parameters);
+}
+
+// `e` weighed again by the joint fits under both intervals: `difference` is the other's criterion
+// minus the fitted one's (> 0: the fitted one is the better).
+void weigh_jointly(IntervalEvidence& e, double difference) {
+  e.joint = true;
+  e.thermal_statistic = e.statistic;
+  e.statistic = std::abs(difference);
+  e.determined = e.statistic >= e.threshold;
+}
+
+// An interval T̄ alone could not tell: the fit under the other one too, the two weighed over x and
+// T̄ together (where x decides it, the better one is kept). θ1..θ4 either move with it (the
+// interval stays undetermined) or not (equivalent); where it stays undetermined every σ takes the
+// spread.
 void compare_intervals(std::span<const WindowSample> window, const Vector6& theta_start,
                        const FitSettings& settings, const IntervalChoice& choice,
                        FitResult& result) {
-  const VoltageInterval other =
-      choice.interval == VoltageInterval::after ? VoltageInterval::before : VoltageInterval::after;
-  const FitResult alt = fit_under(window, theta_start, settings, other, choice.other_switches);
+  FitResult alt = fit_under(window, theta_start, settings, other_interval(choice.interval),
+                            choice.other_switches);
   result.iterations += alt.iterations;
   result.evaluations += alt.evaluations;
   if (!alt.converged) return;
-  IntervalEvidence& e = result.voltage_interval_evidence;
+  IntervalEvidence e = result.voltage_interval_evidence;
+  const double difference =
+      joint_criterion(alt, settings.known) - joint_criterion(result, settings.known);
+  if (std::isfinite(difference)) {
+    weigh_jointly(e, difference);
+    if (difference < 0.0) {  // the other interval fits x and T̄ together better
+      alt.iterations = result.iterations;
+      alt.evaluations = result.evaluations;
+      std::swap(result, alt);
+    }
+  }
   e.compared = true;
   e.theta_shift_sigma = mechanical_shift_sigma(result, alt, settings.known);
   e.equivalent = e.theta_shift_sigma <= kEquivalentThetaShift;
-  add_interval_covariance(result, interval_covariance(result, alt, e.statistic, settings.known));
+  result.voltage_interval_evidence = e;
+  if (!e.determined)
+    add_interval_covariance(result, interval_covariance(result, alt, e.statistic, settings.known));
+}
+
+// A declared interval T̄ alone could not check: the fit under the other one weighed against it
+// over x and T̄ together. The fit keeps the declaration; the evidence says whether the data
+// decide, and for which.
+void check_declared_jointly(std::span<const WindowSample> window, const Vector6& theta_start,
+                            const FitSettings& settings, const IntervalChoice& choice,
+                            FitResult& result) {
+  const FitResult alt = fit_under(window, theta_start, settings, other_interval(choice.interval),
+                                  choice.other_switches);
+  result.iterations += alt.iterations;
+  result.evaluations += alt.evaluations;
+  if (!alt.converged) return;
+  const double difference =
+      joint_criterion(alt, settings.known) - joint_criterion(result, settings.known);
+  if (!std::isfinite(difference)) return;
+  IntervalEvidence& e = result.voltage_interval_evidence;
+  weigh_jointly(e, difference);
+  e.contradicted = e.determined && difference < 0.0;
 }
 
 // The declared interval, with the evidence of weighing it against the other as `estimate` would
@@ -373,8 +432,11 @@ FitResult fit_cold(std::span<const WindowSample> window, const Vector6& theta_st
   }
   FitResult result = fit_under(window, theta_start, settings, choice.interval, choice.switches);
   result.voltage_interval_evidence = choice.evidence;
-  if (choice.evidence.estimated && !choice.evidence.determined && result.converged)
-    compare_intervals(window, theta_start, settings, choice, result);
+  if (!choice.evidence.determined && result.converged) {
+    if (choice.evidence.estimated) compare_intervals(window, theta_start, settings, choice, result);
+    if (choice.evidence.checked)
+      check_declared_jointly(window, theta_start, settings, choice, result);
+  }
   return result;
 }
 

@@ -56,6 +56,12 @@ struct IntervalEvidence {
   // declaration's, which the data reject.
   bool checked = false;
   bool contradicted = false;
+  // Where the thermal stage's criterion (on T̄ alone) left the interval undetermined and both
+  // intervals' full fits converged: `statistic` is then theirs, Schwarz's criterion over x and T̄
+  // together (the mechanics follow the heat within milliseconds, so x often tells a one-period
+  // shift T̄ cannot), and `thermal_statistic` the thermal stage's.
+  bool joint = false;
+  double thermal_statistic = 0.0;
 };
 // A bias of a quarter σ costs an estimate 3 % of its RMS error and its 2σ interval 1 % coverage.
 inline constexpr double kEquivalentThetaShift = 0.25;

@@ -17,7 +17,7 @@ using nlohmann::json;
 
 TEST(Render, VersionErrorAckWatchAreExactLines) {
   EXPECT_EQ(render_version("1.2.3"),
-            "{\"class\":\"VERSION\",\"proto_major\":1,\"proto_minor\":15,\"release\":\"1.2.3\"}\n");
+            "{\"class\":\"VERSION\",\"proto_major\":1,\"proto_minor\":16,\"release\":\"1.2.3\"}\n");
   EXPECT_EQ(render_error("bad \"x\""), "{\"class\":\"ERROR\",\"message\":\"bad \\\"x\\\"\"}\n");
   EXPECT_EQ(render_ack("reset", true, "done"),
             "{\"class\":\"ACK\",\"message\":\"done\",\"ok\":true,\"request\":\"reset\"}\n");

@@ -194,6 +194,10 @@ void put_voltage_interval(json& o, const refine::RefinedView& r) {
   }
   put_finite(test, "statistic", e.statistic);
   put_finite(test, "threshold", e.threshold);
+  if (e.joint) {
+    test["joint"] = true;
+    put_finite(test, "thermal_statistic", e.thermal_statistic);
+  }
   if (e.compared) {
     test["equivalent"] = e.equivalent;
     put_finite(test, "theta_shift_sigma", e.theta_shift_sigma);

@@ -28,7 +28,9 @@ inline constexpr int kProtoMajor = 1;
 // 1.14: refined.warm_fallback structure_found (a warm refit whose validation finds structure).
 // 1.15: a declared voltage interval weighed against the data: voltage_interval_test declared and
 // contradicted, STATUS.refine.voltage_interval `contradicted` (issue 28).
-inline constexpr int kProtoMinor = 15;
+// 1.16: refined.voltage_interval_test joint and thermal_statistic: where T̄ alone left the
+// interval undetermined, both intervals' full fits weighed over x and T̄ together (issue 28).
+inline constexpr int kProtoMinor = 16;
 
 std::string render_version(std::string_view release);
 std::string render_error(std::string_view message);
