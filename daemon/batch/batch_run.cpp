@@ -330,6 +330,11 @@ std::string interval_line(const nlohmann::json& r) {
                   number_or_dash(t.value("statistic", nlohmann::json()), "%.3g").c_str(),
                   number_or_dash(t.value("threshold", nlohmann::json()), "%.3g").c_str());
     out += line;
+    if (t.value("joint", false)) {
+      std::snprintf(line, sizeof line, "; from x and T together (T alone: %s)",
+                    number_or_dash(t.value("thermal_statistic", nlohmann::json()), "%.3g").c_str());
+      out += line;
+    }
     if (t.contains("equivalent")) {
       std::snprintf(line, sizeof line, "; under the other interval theta moved %s sigma: %s",
                     number_or_dash(t.value("theta_shift_sigma", nlohmann::json()), "%.2g").c_str(),

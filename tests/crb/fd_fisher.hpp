@@ -15,66 +15,6 @@
 
 namespace scp::tools::crb::test {
 
-// x and T̄ at every sample of `window` for this θ and initial state.
-inline std::vector<double> simulate_outputs(std::span<const refine::WindowSample> window,
-                                            const Eigen::Matrix<double, 9, 1>& p) {
-  // Any m and R give the same trajectory for the same θ: take m = R = 1.
-  drivers::sim::PlantParams params;
-  params.m = 1.0;
-  params.R = 1.0;
-  params.b = p[0];
-  params.alpha1 = p[1];
-  params.k = p[2];
-  params.alpha2 = p[3];
-  params.Cth = 1.0 / p[5];
-  params.lambda = p[4] * params.Cth;
-  drivers::sim::Plant plant(params, 20);
-  plant.set_state(p[6], p[7], p[8]);
-  std::vector<double> out;
-  out.reserve(2 * window.size());
-  for (std::size_t k = 0; k < window.size(); ++k) {
-    if (k > 0) plant.step(window[k].voltage, window[k].t - window[k - 1].t);
-    out.push_back(plant.x());
-    out.push_back(plant.tbar());
-  }
-  return out;
-}
-
-inline refine::Matrix6 finite_difference_crb(std::span<const refine::WindowSample> window,
-                                             const refine::Vector6& theta,
-                                             const refine::InitialState& initial,
-                                             const refine::Vector2& noise_sigma) {
-  Eigen::Matrix<double, 9, 1> p;
-  p << theta, initial;
-  const std::array<double, 3> state_step{1e-9, 1e-8, 1e-4};  // m, m/s, °C
-  const Eigen::Index n = static_cast<Eigen::Index>(2 * window.size());
-  Eigen::MatrixXd jac(n, 9);
-  for (int j = 0; j < 9; ++j) {
-    const double h = j < 6 ? 1e-5 * std::abs(p[j]) : state_step[static_cast<std::size_t>(j - 6)];
-    Eigen::Matrix<double, 9, 1> up = p, down = p;
-    up[j] += h;
-    down[j] -= h;
-    const auto yu = simulate_outputs(window, up);
-    const auto yd = simulate_outputs(window, down);
-    for (Eigen::Index r = 0; r < n; ++r) {
-      const auto u = static_cast<std::size_t>(r);
-      jac(r, j) = (yu[u] - yd[u]) / (2.0 * h) / noise_sigma[r % 2];
-    }
-  }
-  // Column scaling and QR (not the normal equations): the mechanical columns are nearly
-  // collinear, and JᵀJ would square their condition number.
-  const Eigen::Matrix<double, 9, 1> scale = jac.colwise().norm().transpose();
-  const Eigen::MatrixXd js = jac * scale.cwiseInverse().asDiagonal();
-  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(js);
-  const Eigen::Matrix<double, 9, 9> r = qr.matrixQR().topRows<9>().triangularView<Eigen::Upper>();
-  const Eigen::Matrix<double, 9, 9> r_inv =
-      r.triangularView<Eigen::Upper>().solve(Eigen::Matrix<double, 9, 9>::Identity());
-  const Eigen::Matrix<double, 9, 9> cov = scale.cwiseInverse().asDiagonal() *
-                                          (r_inv * r_inv.transpose()) *
-                                          scale.cwiseInverse().asDiagonal();
-  return cov.topLeftCorner<6, 6>();
-}
-
 // The rows of `window` where the held voltage steps by more than `step_v`, the switches of a
 // PRBS.
 inline std::vector<std::size_t> switch_rows(std::span<const refine::WindowSample> window,
@@ -85,8 +25,10 @@ inline std::vector<std::size_t> switch_rows(std::span<const refine::WindowSample
   return rows;
 }
 
-// simulate_outputs with each switch of `rows` a fraction `phases` of its interval late: the
-// previous row's voltage held until then, the row's after.
+// x and T̄ at every sample of `window` for this θ and initial state, each voltage held over the
+// interval before its sample, but each switch of `rows` a fraction `phases` of its interval late:
+// the previous row's voltage held until then, the row's after. Any m and R give the same
+// trajectory for the same θ: m = R = 1.
 inline std::vector<double> simulate_switched(std::span<const refine::WindowSample> window,
                                              const Eigen::Matrix<double, 9, 1>& p,
                                              const std::vector<std::size_t>& rows,
@@ -130,6 +72,8 @@ inline refine::Matrix6 finite_difference_crb_with_phases(
     std::span<const refine::WindowSample> window, const refine::Vector6& theta,
     const refine::InitialState& initial, const refine::Vector2& noise_sigma,
     const std::vector<std::size_t>& rows) {
+  // Column scaling and QR (not the normal equations): the mechanical columns are nearly
+  // collinear, and JᵀJ would square their condition number.
   Eigen::Matrix<double, 9, 1> p;
   p << theta, initial;
   const auto switches = static_cast<Eigen::Index>(rows.size());
@@ -167,6 +111,14 @@ inline refine::Matrix6 finite_difference_crb_with_phases(
   const Eigen::MatrixXd cov = scale.cwiseInverse().asDiagonal() * (r_inv * r_inv.transpose()) *
                               scale.cwiseInverse().asDiagonal();
   return cov.topLeftCorner<6, 6>();
+}
+
+// The bound without phases: θ and the initial state alone.
+inline refine::Matrix6 finite_difference_crb(std::span<const refine::WindowSample> window,
+                                             const refine::Vector6& theta,
+                                             const refine::InitialState& initial,
+                                             const refine::Vector2& noise_sigma) {
+  return finite_difference_crb_with_phases(window, theta, initial, noise_sigma, {});
 }
 
 }  // namespace scp::tools::crb::test

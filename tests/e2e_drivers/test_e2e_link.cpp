@@ -302,12 +302,15 @@ int free_loopback_port() {
 
 // A DAQ started 1.5 s after the daemon (issue 9): the daemon awaits it in STARTING at 0 V,
 // saying why in STATUS and in its log, without a fault; once the DAQ answers, its first command
-// is 0 V, then it runs. driver.start_timeout_s is 0 (the default): no limit.
+// is 0 V, then it runs. driver.start_timeout_s is 0 (the default): no limit. The link is a lab's
+// on a loaded machine: what is tested is the wait, not whether a 2 ms link hiccups just after it
+// (a full suite beside a Monte Carlo run, three busy processes on two cores, faulted it 200 ms
+// after the DAQ answered: four 2 ms transactions in a row unanswered).
 TEST(E2eLink, DaqStartedLateIsAwaitedInStartingThenRuns) {
-  LinkRun run;
+  LinkRun run("", 0.01, 0.004);
   run.port = free_loopback_port();
   const auto t0 = Clock::now();
-  run.start_daemon("", "info");
+  run.start_daemon(kTolerant, "info");
   const auto waiting = run.wait_status_where(
       [](const nlohmann::json& s) {
         return s.value("waiting_for_device", "first reading") != "first reading";

@@ -372,6 +372,37 @@ TEST(Render, AnUndeterminedVoltageIntervalIsSaidAndNotRecommended) {
   EXPECT_FALSE(j["refined"].contains("voltage_interval_test"));
 }
 
+// An interval the thermal stage left undetermined and the joint fits under both decided: the test
+// says the statistic is theirs and gives the thermal stage's beside it; the interval is named and
+// the refined estimate may be best. Without the joint weighing neither member appears.
+TEST(Render, AnIntervalTheJointFitsDecidedSaysSo) {
+  const PublishedState s = test::sample_state();
+  refine::RefinedView r = sample_refined();
+  r.voltage_interval = scp::refine::VoltageInterval::before;
+  r.voltage_interval_evidence = {.estimated = true,
+                                 .determined = true,
+                                 .statistic = 108.5,
+                                 .threshold = 6.6,
+                                 .compared = true,
+                                 .equivalent = true,
+                                 .theta_shift_sigma = 0.15,
+                                 .joint = true,
+                                 .thermal_statistic = 1.4};
+  json j = json::parse(render_estimate(s.estimate, &r, 12.5));
+  const json& test = j["refined"]["voltage_interval_test"];
+  EXPECT_EQ(test["joint"], true);
+  EXPECT_DOUBLE_EQ(test["statistic"].get<double>(), 108.5);
+  EXPECT_DOUBLE_EQ(test["thermal_statistic"].get<double>(), 1.4);
+  EXPECT_EQ(test["determined"], true);
+  EXPECT_EQ(j["refined"]["voltage_interval"], "before");
+  EXPECT_EQ(j["best"], "refined");
+
+  r.voltage_interval_evidence.joint = false;
+  j = json::parse(render_estimate(s.estimate, &r, 12.5));
+  EXPECT_FALSE(j["refined"]["voltage_interval_test"].contains("joint"));
+  EXPECT_FALSE(j["refined"]["voltage_interval_test"].contains("thermal_statistic"));
+}
+
 // A declared interval the data were weighed against: the test says so, and where the data
 // determined the other interval `best` keeps off the refined estimate, naming the declaration and
 // the remedy; STATUS says `contradicted`.
