@@ -6,6 +6,7 @@
 #include <zlib.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <sstream>
 
@@ -74,10 +75,25 @@ TEST(Recording, RotatingFilesWithWallClockTime) {
   // Replaying the files: e2e.RecordReplay (test_record_replay.cpp).
 }
 
+// The loop at SCHED_FIFO as in service (the tmpfs mount needs root, which may set it), recording
+// into `directory`.
+json recording_daemon_config(const std::string& directory) {
+  return {{"loop", {{"realtime", {{"priority", 50}}}}},
+          {"refine", {{"enabled", false}}},
+          {"recording", {{"directory", directory}, {"rotate_interval_s", 0.0}}}};
+}
+
+double overrun_share(const json& status) {
+  const auto cycles = loop_count(status, "cycles");
+  return cycles == 0
+             ? 1.0
+             : static_cast<double>(loop_count(status, "overruns")) / static_cast<double>(cycles);
+}
+
 // A full filesystem under recording.directory: the loop keeps its period, the daemon keeps
 // running and STATUS counts the rows it could not hand over.
 TEST(Recording, FullDiskDropsCountedRowsAndKeepsThePeriod) {
-  TempDir dir;
+  TempDir dir, baseline_dir;
   const std::string rec = dir.file("tiny");
   std::filesystem::create_directory(rec);
   if (::mount("tmpfs", rec.c_str(), "tmpfs", 0, "size=64k") != 0) {
@@ -90,13 +106,14 @@ TEST(Recording, FullDiskDropsCountedRowsAndKeepsThePeriod) {
     std::string path;
     ~Unmount() { ::umount2(path.c_str(), MNT_DETACH); }
   } unmount{rec};
-  // The loop at SCHED_FIFO as in service (the mount above needs root, which may set it): what is
-  // measured is then the disk's effect on the loop, not the other processes of a loaded machine
-  // (measured at ordinary priority, load 16: 9 % overruns, with a disk that had nothing to do
-  // with it).
-  DaemonProcess daemon(dir, {{"loop", {{"realtime", {{"priority", 50}}}}},
-                             {"refine", {{"enabled", false}}},
-                             {"recording", {{"directory", rec}, {"rotate_interval_s", 0.0}}}});
+  // The same daemon recording onto a disk with room, at the same time: what the full disk costs
+  // the loop is the difference, whatever the machine's load costs both (a loaded CI machine gave
+  // a daemon at SCHED_FIFO 6.5 % overruns with a disk that had nothing to do with it).
+  const std::string baseline_rec = baseline_dir.file("rec");
+  std::filesystem::create_directory(baseline_rec);
+  DaemonProcess baseline(baseline_dir, recording_daemon_config(baseline_rec));
+  DaemonProcess daemon(dir, recording_daemon_config(rec));
+  baseline.start();
   daemon.start();
   // 64 KiB hold about 200 rows (0.2 s); the ring holds 16384 more (16 s at 1 kHz).
   const auto dropping = daemon.wait_status(
@@ -107,20 +124,23 @@ TEST(Recording, FullDiskDropsCountedRowsAndKeepsThePeriod) {
   ASSERT_TRUE(dropping) << "no dropped rows counted: " << daemon.status().dump()
                         << daemon.stderr_text();
   const json st = *dropping;
+  const json baseline_st = baseline.status();
   EXPECT_EQ(st.value("state", ""), "running") << st.dump();
   EXPECT_TRUE(contains(daemon.stderr_text(), "recording: cannot write")) << daemon.stderr_text();
+  EXPECT_EQ(baseline_st["recording"].value("dropped_rows", -1), 0) << baseline_st.dump();
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
   // An instrumented 1 kHz loop is several times slower: 5.4 % overruns measured under ASan on a
   // loaded 2-core VM, which says nothing about the disk. The normal build checks the period.
   return;
 #endif
-  // The period held: cycles follow loop time (1 kHz) and overruns stay a small share.
+  // The period held: cycles follow loop time (1 kHz), and overruns are no more common than
+  // beside a disk with room. A loop that waited on the disk would overrun at every write.
   const double uptime = num(st, "uptime_s");
-  const auto cycles = loop_count(st, "cycles");
-  // Loose bounds: other tests' SCHED_FIFO peers share the machine.
-  EXPECT_GT(static_cast<double>(cycles), 0.9 * uptime * 1000.0) << st.dump();
-  EXPECT_LT(static_cast<double>(loop_count(st, "overruns")), 0.05 * static_cast<double>(cycles))
-      << st.dump();
+  EXPECT_GT(static_cast<double>(loop_count(st, "cycles")), 0.9 * uptime * 1000.0) << st.dump();
+  std::printf("[ figures ] overruns: %.2f %% with the disk full, %.2f %% beside a disk with room\n",
+              100.0 * overrun_share(st), 100.0 * overrun_share(baseline_st));
+  EXPECT_LT(overrun_share(st), 2.0 * overrun_share(baseline_st) + 0.01)
+      << st.dump() << "\nbaseline: " << baseline_st.dump();
 }
 
 json replay(const DaemonProcess& daemon, const std::string& what) {

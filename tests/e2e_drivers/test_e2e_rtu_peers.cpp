@@ -32,6 +32,8 @@ using Clock = std::chrono::steady_clock;
 // Each cycle reads 10 registers and writes one, for 60 s; mbpoll polls the same 10 registers
 // every 10 ms meanwhile.
 constexpr double kRunS = 60.0;
+// The map reads its 10 registers (function 3) and writes one (function 6): 8-byte requests.
+constexpr long long kRequestBytes = 8;
 
 struct RtuRun {
   double period_s;
@@ -77,23 +79,35 @@ PollCount mbpoll_count(const std::string& out) {
   return c;
 }
 
-// The emulator's latest report: master frames, and those that began less than t3.5 after the
-// previous frame on the line.
+// The emulator's latest report: master frames, those that began less than t3.5 after the
+// previous frame on the line, and those longer than one request.
 struct LineCount {
   long long master_frames = -1;
   long long short_silences = -1;
-  long long longest_master_frame = -1;
+  long long glued_requests = -1;
 };
-LineCount line_count(const std::string& out) {
+// Requests that reached the line in the frame of an earlier one, from the emulator's "LxN" list
+// (N master frames of L bytes).
+long long requests_glued_on(const std::string& lengths, long long request_bytes) {
+  const std::regex re("(\\d+)x(\\d+)");
+  long long n = 0;
+  for (auto it = std::sregex_iterator(lengths.begin(), lengths.end(), re);
+       it != std::sregex_iterator(); ++it) {
+    const long long requests = std::stoll((*it)[1]) / request_bytes;
+    if (requests > 1) n += (requests - 1) * std::stoll((*it)[2]);
+  }
+  return n;
+}
+LineCount line_count(const std::string& out, long long request_bytes) {
   const std::regex re(
       "serial line: (\\d+) master frames, \\d+ slave frames; (\\d+) master frames began "
-      "less[^;]*; [^;]*; longest master frame (\\d+) bytes");
+      "less[^;]*; [^;]*; longest master frame \\d+ bytes; master frame lengths([ 0-9x]*)");
   LineCount c;
   for (auto it = std::sregex_iterator(out.begin(), out.end(), re); it != std::sregex_iterator();
        ++it) {
     c.master_frames = std::stoll((*it)[1]);
     c.short_silences = std::stoll((*it)[2]);
-    c.longest_master_frame = std::stoll((*it)[3]);
+    c.glued_requests = requests_glued_on((*it)[3], request_bytes);
   }
   return c;
 }
@@ -108,7 +122,7 @@ LineCount line_report_now(ChildProcess& line) {
   for (int i = 0; i < 250 && reports() == before; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
-  return line_count(line.output());
+  return line_count(line.output(), kRequestBytes);
 }
 
 // config/modbus-rtu.yaml as shipped, with what this set-up dictates: the slave's line, unit and
@@ -244,17 +258,21 @@ void run_beside_mbpoll(const RtuRun& run) {
   const long long polls_failed = polls.sent - polls.received;
   const double baseline_rate = poisson_upper_95(polls_failed) / static_cast<double>(polls.sent);
   const double lateness_max_us = l["lateness_us"].value("max", 0.0);
+  const double lateness_p99_us = l["lateness_us"].value("p99", 0.0);
   const long long short_silences = after.short_silences - before.short_silences;
+  const long long glued = after.glued_requests - before.glued_requests;
   std::printf(
       "[ figures ] RTU 115200 Bd, pymodbus slave, %.0f ms period, %.0f ms timeout, %.0f s: "
       "mbpoll %lld polls, %lld failed (%.3f %%); daemon %lld transactions, %lld failed (%.3f %%: "
       "%lld reads, %lld writes), %lld late replies, RUNNING at %d of %d polls, lateness max "
-      "%.0f us, %lld overruns, %lld of %lld requests sooner than t3.5\n",
+      "%.0f us (p99 %.0f us), %lld overruns, %lld of %lld requests sooner than t3.5, %lld "
+      "glued to the one before\n",
       run.period_s * 1e3, run.timeout_s * 1e3, kRunS, polls.sent, polls_failed,
       100.0 * static_cast<double>(polls_failed) / static_cast<double>(polls.sent), done, failed,
       100.0 * rate, d.value("read_errors", 0LL), d.value("write_errors", 0LL),
       d.value("late_replies", 0LL), p.polls - p.not_running, p.polls, lateness_max_us,
-      l.value("overruns", 0LL), short_silences, after.master_frames - before.master_frames);
+      lateness_p99_us, l.value("overruns", 0LL), short_silences,
+      after.master_frames - before.master_frames, glued);
   EXPECT_GT(done, 1.6 * kRunS / run.period_s) << p.last.dump();  // 2 transactions a cycle
   if (run.compare_rates) {
     EXPECT_EQ(p.not_running, 0) << p.first_not_running.dump();
@@ -263,17 +281,23 @@ void run_beside_mbpoll(const RtuRun& run) {
     EXPECT_LT(lateness_max_us, run.period_s * 1e6) << p.last.dump();
   } else {
     // Under `stress -c 2` the daemon lost 5 % of transactions and was RUNNING at 53 of 60 polls;
-    // a driver that held the loop (the blocking reads this replaced) loses the period.
+    // a driver that held the loop (the blocking reads this replaced) loses the period. The 99th
+    // percentile, not the maximum: a loaded CI machine stalls whole processes (a loop at
+    // SCHED_FIFO overran there in 6.5 % of its 1 ms cycles), and one stall sets the maximum.
     EXPECT_LE(rate, 0.15) << p.last.dump();
     EXPECT_LE(p.not_running, p.polls / 3) << p.first_not_running.dump();
-    EXPECT_LT(lateness_max_us, 5.0 * run.period_s * 1e6) << p.last.dump();
+    EXPECT_LT(lateness_p99_us, 5.0 * run.period_s * 1e6) << p.last.dump();
   }
   // A request sent after a timeout can still meet a reply that was later than that (the line
   // showed no byte of it yet): at most one such collision per failed transaction.
   EXPECT_LE(short_silences, failed) << daemon_line.process->output();
-  // Requests leave one at a time: none the port held back went out glued to a later one (the map
-  // reads and writes with 8-byte requests).
-  EXPECT_EQ(after.longest_master_frame, 8) << daemon_line.process->output();
+  // Requests leave one at a time: the port's unsent output is flushed after a timeout, so none
+  // it held back goes out glued to a later one. A pty has no unsent output to flush once its
+  // tty worker passed the bytes on: when the machine stalls the line's emulator past a timeout,
+  // the requests sent meanwhile reach it in one read (a 40 ms SIGSTOP of the emulator every 2 s
+  // glued 74 requests, after 99 failed transactions). Each glued request followed one that went
+  // unanswered.
+  EXPECT_LE(glued, failed) << daemon_line.process->output();
 }
 
 // mbpoll's own timeout, 10 ms (its shortest), and the longest period a read and a write at that

@@ -12,9 +12,9 @@
 // It also watches the line as the Modbus serial line specification (V1.02, §2.5.1.1) does: a
 // master's frame must begin at least t3.5 after the end of the previous frame on the line, either
 // way (3.5 characters, fixed 1.75 ms above 19200 Bd). It prints how many master frames began
-// sooner, the shortest silence seen, the longest master frame (requests a port held back leave
-// glued together) and the frame counts (all since start) on SIGUSR1, and on SIGTERM before it
-// exits.
+// sooner, the shortest silence seen, the longest master frame and how many master frames had each
+// length (requests a port held back leave glued together), and the frame counts (all since
+// start) on SIGUSR1, and on SIGTERM before it exits.
 //
 //   usage: serial_line_emulator [--baud B] [--parity N|E|O] [--data-bits D] [--stop-bits S]
 //                               [--slave-port PORT] [--trace FILE]
@@ -41,6 +41,7 @@
 #include <ctime>
 #include <deque>
 #include <limits>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -166,6 +167,7 @@ class LineMonitor {
     // A new frame: the other side spoke last, or this side paused longer than t1.5.
     if (frames_.empty() || frames_.back().from != from || start - frames_.back().end_ns > t15_ns_) {
       if (from == 'M') count_master_frame(start);
+      if (!frames_.empty() && frames_.back().from == 'M') ++master_lengths_[master_frame_bytes_];
       if (!keep_ && !frames_.empty()) frames_.pop_front();
       frames_.push_back({start, b.end_ns, from, {}});
       master_frame_bytes_ = 0;
@@ -182,12 +184,19 @@ class LineMonitor {
     std::fprintf(out,
                  "serial line: %llu master frames, %llu slave frames; %llu master frames began "
                  "less than t3.5 (%.0f us) after the previous frame; shortest silence before a "
-                 "master frame %.0f us; longest master frame %llu bytes\n",
+                 "master frame %.0f us; longest master frame %llu bytes; master frame lengths",
                  static_cast<unsigned long long>(master_frames_),
                  static_cast<unsigned long long>(slave_frames_),
                  static_cast<unsigned long long>(short_silences_), t35_ns_ * 1e-3,
                  master_frames_ < 2 ? 0.0 : shortest_silence_ns_ * 1e-3,
                  static_cast<unsigned long long>(longest_master_));
+    std::map<std::uint64_t, std::uint64_t> lengths = master_lengths_;
+    if (!frames_.empty() && frames_.back().from == 'M') ++lengths[master_frame_bytes_];
+    for (const auto& [bytes, count] : lengths) {
+      std::fprintf(out, " %llux%llu", static_cast<unsigned long long>(bytes),
+                   static_cast<unsigned long long>(count));
+    }
+    std::fputc('\n', out);
   }
 
   void write_trace(std::FILE* out, std::int64_t t0_ns) const {
@@ -214,6 +223,7 @@ class LineMonitor {
   // Bytes of the current master frame, and the most any had: more than one request's worth means
   // requests the master's port held back and then sent at once.
   std::uint64_t master_frame_bytes_ = 0, longest_master_ = 0;
+  std::map<std::uint64_t, std::uint64_t> master_lengths_;  // bytes -> ended master frames
   std::int64_t shortest_silence_ns_ = std::numeric_limits<std::int64_t>::max();
 };
 
