@@ -80,7 +80,7 @@ PollCount mbpoll_count(const std::string& out) {
 }
 
 // The emulator's latest report: master frames, those that began less than t3.5 after the
-// previous frame on the line, and those longer than one request.
+// previous frame on the line, and the requests that reached it glued onto an earlier one.
 struct LineCount {
   long long master_frames = -1;
   long long short_silences = -1;

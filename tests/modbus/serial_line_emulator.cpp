@@ -175,12 +175,14 @@ class LineMonitor {
     }
     frames_.back().end_ns = b.end_ns;
     if (from == 'M') {
-      longest_master_ = std::max(longest_master_, ++master_frame_bytes_);
+      ++master_frame_bytes_;
     }
     if (keep_) frames_.back().bytes.push_back(b.value);
   }
 
   void report(std::FILE* out) const {
+    const auto lengths = master_frame_lengths();
+    const std::uint64_t longest = lengths.empty() ? 0 : lengths.rbegin()->first;
     std::fprintf(out,
                  "serial line: %llu master frames, %llu slave frames; %llu master frames began "
                  "less than t3.5 (%.0f us) after the previous frame; shortest silence before a "
@@ -189,9 +191,7 @@ class LineMonitor {
                  static_cast<unsigned long long>(slave_frames_),
                  static_cast<unsigned long long>(short_silences_), t35_ns_ * 1e-3,
                  master_frames_ < 2 ? 0.0 : shortest_silence_ns_ * 1e-3,
-                 static_cast<unsigned long long>(longest_master_));
-    std::map<std::uint64_t, std::uint64_t> lengths = master_lengths_;
-    if (!frames_.empty() && frames_.back().from == 'M') ++lengths[master_frame_bytes_];
+                 static_cast<unsigned long long>(longest));
     for (const auto& [bytes, count] : lengths) {
       std::fprintf(out, " %llux%llu", static_cast<unsigned long long>(bytes),
                    static_cast<unsigned long long>(count));
@@ -209,6 +209,13 @@ class LineMonitor {
   }
 
  private:
+  // Bytes -> master frames of that length, the one still on the line included.
+  std::map<std::uint64_t, std::uint64_t> master_frame_lengths() const {
+    std::map<std::uint64_t, std::uint64_t> lengths = master_lengths_;
+    if (!frames_.empty() && frames_.back().from == 'M') ++lengths[master_frame_bytes_];
+    return lengths;
+  }
+
   void count_master_frame(std::int64_t start) {
     if (frames_.empty()) return;
     const std::int64_t silence = start - frames_.back().end_ns;
@@ -220,10 +227,10 @@ class LineMonitor {
   bool keep_;
   std::deque<Frame> frames_;
   std::uint64_t master_frames_ = 0, slave_frames_ = 0, short_silences_ = 0;
-  // Bytes of the current master frame, and the most any had: more than one request's worth means
-  // requests the master's port held back and then sent at once.
-  std::uint64_t master_frame_bytes_ = 0, longest_master_ = 0;
-  std::map<std::uint64_t, std::uint64_t> master_lengths_;  // bytes -> ended master frames
+  // Bytes of the current master frame, and how many ended master frames had each length: more
+  // than one request's worth means requests the master's port held back and then sent at once.
+  std::uint64_t master_frame_bytes_ = 0;
+  std::map<std::uint64_t, std::uint64_t> master_lengths_;
   std::int64_t shortest_silence_ns_ = std::numeric_limits<std::int64_t>::max();
 };
 
