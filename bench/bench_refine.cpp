@@ -6,6 +6,9 @@
 
 #include <unsupported/Eigen/NonLinearOptimization>
 #include <vector>
+#if defined(__SSE2__)
+#include <xmmintrin.h>
+#endif
 
 #include "common/heap.hpp"
 #include "refine/fit.hpp"
@@ -20,6 +23,10 @@
 namespace {
 
 using namespace scp::refine;
+
+#if defined(__SSE2__)
+constexpr unsigned int kFlushToZero = 0x8000, kDenormalsAreZero = 0x0040;  // MXCSR bits
+#endif
 
 // The paper's experiment with the N1 sensor noise of PAPER-NOTES (1e-7 m, 1e-3 °C), 300 s.
 const std::vector<WindowSample>& window() {
@@ -126,6 +133,37 @@ void BM_PassWithSensitivities(benchmark::State& state) {
                          benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 BENCHMARK(BM_PassWithSensitivities)->Unit(benchmark::kMillisecond);
+
+// One pass with sensitivities on light-stiff's window (its initial state's columns decay below
+// the smallest normal double within 20 s), and the same with the CPU flushing subnormals to zero
+// (x86's MXCSR FTZ|DAZ) as the baseline: equal when no subnormal reaches the pass's arithmetic
+// (refine/sensitivities.hpp, kNegligibleSensitivity).
+void light_stiff_pass(benchmark::State& state) {
+  const auto& w = light_stiff_window();
+  const ParamVector p =
+      param_vector(test::theta_of(test::light_stiff()), Eigen::Vector3d(w[0].x, 0.0, w[0].tbar));
+  PassSettings ps;
+  ps.weight = {1e14, 1e6};
+  for (auto _ : state) benchmark::DoNotOptimize(residual_pass(w, p, ps));
+  state.counters["ns_per_sample"] =
+      benchmark::Counter(static_cast<double>(w.size()) * state.iterations(),
+                         benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+
+void BM_PassLightStiff(benchmark::State& state) {
+  light_stiff_pass(state);
+}
+BENCHMARK(BM_PassLightStiff)->Unit(benchmark::kMillisecond);
+
+#if defined(__SSE2__)
+void BM_PassLightStiffFlushingSubnormals(benchmark::State& state) {
+  const unsigned int saved = _mm_getcsr();
+  _mm_setcsr(saved | kFlushToZero | kDenormalsAreZero);
+  light_stiff_pass(state);
+  _mm_setcsr(saved);
+}
+BENCHMARK(BM_PassLightStiffFlushingSubnormals)->Unit(benchmark::kMillisecond);
+#endif
 
 void BM_PassCostOnly(benchmark::State& state) {
   const auto& w = window();

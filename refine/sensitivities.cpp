@@ -1,6 +1,7 @@
 #include "refine/sensitivities.hpp"
 
 #include <array>
+#include <cmath>
 
 namespace scp::refine {
 
@@ -41,6 +42,13 @@ void SensitivitySimulator::advance(const WindowSample& prev, const WindowSample&
       advance_piece_sensitivities(sub, mp, before);
     }
   }
+  flush_decayed_columns();
+}
+
+void SensitivitySimulator::flush_decayed_columns() noexcept {
+  for (const int slot : kDecayingSlots)
+    for (ParamVector* column : {&dx_, &dxdot_, &dtbar_})
+      if (std::abs((*column)[slot]) < kNegligibleSensitivity) (*column)[slot] = 0.0;
 }
 
 void SensitivitySimulator::advance_extended_thermal_sensitivities(const Piece& piece,

@@ -18,6 +18,10 @@
 
 namespace scp::refine {
 
+// A sensitivity this small is 0: its products with any other entry and any channel's weight stay
+// far below what the normal equations resolve, and its square stays a normal double.
+inline constexpr double kNegligibleSensitivity = 1e-150;
+
 class SensitivitySimulator {
  public:
   // thermal_only: advance T̄ and its sensitivities only (the thermal stage of the fit).
@@ -76,6 +80,13 @@ class SensitivitySimulator {
   // column does (no forcing of their own).
   static constexpr std::array<int, 3> kReadingSlots{kAmbientOffsetSlot, kAmbientDriftSlot,
                                                     kSensorLagSlot};
+  // The columns nothing drives after the start (the initial state's and the reading's): they
+  // decay geometrically, and once subnormal a factor above 1/2 rounds an entry back to itself, so
+  // it never reaches 0 and every product with it runs at a fraction of the normal speed.
+  static constexpr std::array<int, 6> kDecayingSlots{
+      kX0, kXdot0, kTbar0, kAmbientOffsetSlot, kAmbientDriftSlot, kSensorLagSlot};
+  // Sets those columns' entries below kNegligibleSensitivity to 0.
+  void flush_decayed_columns() noexcept;
 
   Vector6 theta_;
   SubstepRule substep_rule_;
