@@ -29,9 +29,9 @@ constexpr std::array<double, 6> kInverseFactorial{1.0,       1.0,        0.5,
 // Up to this |z| the first eight terms of φ2's series reach the last bit: the ninth,
 // |z|⁸/10!, is below 1e-18 of φ2 ≥ 0.49.
 constexpr double kShortSeriesRadius = 1.0 / 32.0;
-// 1/(j+2)! for j = 0..7.
-constexpr std::array<double, 8> kPhi2Series = [] {
-  std::array<double, 8> c{};
+// 1/(j+2)! for j = 0..17: the most terms of φ2's series phi2_series_terms() asks for.
+constexpr std::array<double, 18> kPhi2Series = [] {
+  std::array<double, 18> c{};
   double f = 2.0;
   for (std::size_t j = 0; j < c.size(); ++j) {
     c[j] = 1.0 / f;
@@ -46,20 +46,98 @@ bool converged(double term, double sum) noexcept {
   return std::abs(term) < 1e-17 * std::abs(sum);
 }
 
-// φ1 and φ2 at complex z, given e = e^z. Beyond the series, 1/z as z̄/|z|² (|z| ≥ 1: nothing to
-// overflow), not std::complex's division, whose library call guards against infinities that
-// cannot occur here and cost as much as the exponential.
-std::array<Complex, 2> phi12_of(Complex z, Complex e) noexcept {
-  if (std::norm(z) < kSeriesRadius * kSeriesRadius) {
-    Complex p1 = 0.0, p2 = 0.0, t1 = 1.0, t2 = 0.5;  // z^j/(j+1)!, z^j/(j+2)!
-    for (std::size_t j = 0; j < kSeriesTerms; ++j) {
-      p1 += t1;
-      p2 += t2;
-      t1 *= z * kInverse[j + 2];
-      t2 *= z * kInverse[j + 3];
-    }
-    return {p1, p2};
+// How many terms of φ2's series Σ z^j/(j+2)! reach the last bit for |z|² ≤ `norm`: the first
+// term left out, |z|^n/(n+2)!, is below 1e-17 of |φ2| ≥ 0.36 on |z| ≤ 1. The fewest the step's
+// |z| needs, where one count for the whole disc would spend 18 on a 1 ms step of ωn = 141 rad/s.
+int phi2_series_terms(double norm) noexcept {
+  if (norm <= kShortSeriesRadius * kShortSeriesRadius) return 8;
+  if (norm <= 1.0 / 16.0) return 12;  // |z| ≤ 1/4
+  if (norm <= 1.0 / 4.0) return 14;   // |z| ≤ 1/2
+  return 18;
+}
+
+// f(M) = g0·I + g1·N with N = M − cI, N² = δ²I: such pairs multiply as
+// (a0 + a1 N)(b0 + b1 N) = (a0 b0 + δ² a1 b1) + (a0 b1 + a1 b0) N, so a series in M runs on two
+// doubles, with no eigenvalue, square root or quotient (for δ² < 0 these are the complex numbers
+// a0 + i·ω·a1, ω² = −δ²).
+struct Pair {
+  double g0, g1;
+};
+
+// The (g0, g1) pairs of the header for f = exp, φ1, φ2.
+struct G {
+  Pair f[3];
+};
+
+struct PairAlgebra {
+  double delta2;
+
+  Pair times(Pair a, Pair b) const noexcept {
+    return {a.g0 * b.g0 + delta2 * a.g1 * b.g1, a.g0 * b.g1 + a.g1 * b.g0};
   }
+  Pair plus_times(Pair a, Pair b, Pair z) const noexcept {  // a + b·z
+    return {a.g0 + b.g0 * z.g0 + delta2 * b.g1 * z.g1, a.g1 + b.g0 * z.g1 + b.g1 * z.g0};
+  }
+};
+
+// One level of Estrin's order: level[j] = level[2j] + level[2j+1]·power over the first `Width`
+// entries, then the next level with power². A template of its width, so that every loop has a
+// trip count the compiler sees and unrolls, and the entries stay in registers.
+template <std::size_t Width, std::size_t Size>
+Pair fold(const PairAlgebra& algebra, std::array<Pair, Size>& level, Pair power) noexcept {
+  if constexpr (Width == 1) {
+    return level[0];
+  } else {
+    for (std::size_t j = 0; j < Width / 2; ++j) {
+      level[j] = algebra.plus_times(level[2 * j], level[2 * j + 1], power);
+    }
+    if constexpr (Width % 2 == 1) level[Width / 2] = level[Width - 1];
+    return fold<(Width + 1) / 2>(algebra, level, algebra.times(power, power));
+  }
+}
+
+// Σ_{j<N} M^j/(j+2)! in Estrin's order: pairs c_{2j} + c_{2j+1}·M, then pairs of those times
+// M², M⁴, ...; a chain of ⌈log2 N⌉ products where Horner's order waits on N − 1 in turn.
+template <std::size_t N>
+Pair phi2_series(const PairAlgebra& algebra, Pair m) noexcept {
+  std::array<Pair, (N + 1) / 2> level{};
+  for (std::size_t j = 0; j < level.size(); ++j) {
+    const double odd = 2 * j + 1 < N ? kPhi2Series[2 * j + 1] : 0.0;
+    level[j] = {kPhi2Series[2 * j] + odd * m.g0, odd * m.g1};
+  }
+  return fold<(N + 1) / 2>(algebra, level, algebra.times(m, m));
+}
+
+// The (g0, g1) of exp, φ1, φ2 for a complex pair c ± iω inside the unit disc (c² − δ² = |c ± iω|²
+// < 1): φ2 from its series, then φ1 = I + M·φ2 and e^M = I + M·φ1, no transcendental call.
+G series_coefficients(double c, double delta2) noexcept {
+  const PairAlgebra algebra{delta2};
+  const Pair m{c, 1.0};  // M = c·I + 1·N
+  G g;
+  Pair* f = g.f;
+  switch (phi2_series_terms(c * c - delta2)) {
+    case 8:
+      f[2] = phi2_series<8>(algebra, m);
+      break;
+    case 12:
+      f[2] = phi2_series<12>(algebra, m);
+      break;
+    case 14:
+      f[2] = phi2_series<14>(algebra, m);
+      break;
+    default:
+      f[2] = phi2_series<18>(algebra, m);
+      break;
+  }
+  f[1] = algebra.plus_times({1.0, 0.0}, f[2], m);
+  f[0] = algebra.plus_times({1.0, 0.0}, f[1], m);
+  return g;
+}
+
+// φ1 and φ2 at complex z with |z| ≥ 1, given e = e^z: 1/z as z̄/|z|² (nothing to overflow), not
+// std::complex's division, whose library call guards against infinities that cannot occur here
+// and cost as much as the exponential.
+std::array<Complex, 2> phi12_of(Complex z, Complex e) noexcept {
   const Complex inverse = std::conj(z) / std::norm(z);
   const Complex p1 = (e - 1.0) * inverse;
   return {p1, (p1 - 1.0) * inverse};
@@ -102,11 +180,6 @@ std::array<double, 6> phis(double z) noexcept {
   return p;
 }
 
-// The (g0, g1) pairs of the header for f = exp, φ1, φ2.
-struct G {
-  double g0[3], g1[3];
-};
-
 // Below this |δ| the divided difference (f(c+δ) − f(c−δ))/(2δ) loses more than ~1e-13 to
 // cancellation; the Taylor series in δ² truncated after δ² is then accurate to ~|δ|⁴/24 < 1e-13.
 constexpr double kRepeatedDelta = 1e-3;
@@ -122,8 +195,8 @@ G coefficients(double c, double delta2, double det) noexcept {
       const double d1 = p[k] - a * p[k + 1];
       const double d2 = p[k] - 2.0 * a * p[k + 1] + a1 * p[k + 2];
       const double d3 = p[k] - 3.0 * a * p[k + 1] + 3.0 * a1 * p[k + 2] - a2 * p[k + 3];
-      g.g0[k] = p[k] + 0.5 * d2 * delta2;
-      g.g1[k] = d1 + d3 * delta2 / 6.0;
+      g.f[k].g0 = p[k] + 0.5 * d2 * delta2;
+      g.f[k].g1 = d1 + d3 * delta2 / 6.0;
     }
     return g;
   }
@@ -140,10 +213,13 @@ G coefficients(double c, double delta2, double det) noexcept {
     const auto fp = phis_of_real(lp), fm = phis_of_real(lm);
     const double inverse_gap = 0.5 / delta;  // λ+ − λ− = 2δ
     for (std::size_t k = 0; k < 3; ++k) {
-      g.g0[k] = 0.5 * (fp[k] + fm[k]);
-      g.g1[k] = (fp[k] - fm[k]) * inverse_gap;
+      g.f[k].g0 = 0.5 * (fp[k] + fm[k]);
+      g.f[k].g1 = (fp[k] - fm[k]) * inverse_gap;
     }
     return g;
+  }
+  if (c * c - delta2 < kSeriesRadius * kSeriesRadius) {
+    return series_coefficients(c, delta2);
   }
   const double omega = std::sqrt(-delta2);
   const Complex z(c, omega);
@@ -151,8 +227,8 @@ G coefficients(double c, double delta2, double det) noexcept {
   const auto f = phi12_of(z, e);
   const Complex v[3] = {e, f[0], f[1]};
   for (int k = 0; k < 3; ++k) {
-    g.g0[k] = v[k].real();
-    g.g1[k] = v[k].imag() / omega;
+    g.f[k].g0 = v[k].real();
+    g.f[k].g1 = v[k].imag() / omega;
   }
   return g;
 }
@@ -165,15 +241,13 @@ ExpPhi exp_phi(const Matrix2& m) noexcept {
   // δ² = c² − det(M) = ((m00 − m11)/2)² + m01·m10, free of the cancellation in c² − det.
   const double delta2 = a * a + m(0, 1) * m(1, 0);
   const G g = coefficients(c, delta2, m(0, 0) * m(1, 1) - m(0, 1) * m(1, 0));
-  Matrix2 n = m;
-  n(0, 0) -= c;
-  n(1, 1) -= c;
+  // f(M) = g0·I + g1·N, N = M − cI = [[a, m01], [m10, −a]], entry by entry (a copy of M
+  // shifted in place and then read as a vector is a store the load cannot be forwarded from).
   ExpPhi out;
   Matrix2* f[3] = {&out.exp, &out.phi1, &out.phi2};
   for (int k = 0; k < 3; ++k) {
-    *f[k] = g.g1[k] * n;
-    (*f[k])(0, 0) += g.g0[k];
-    (*f[k])(1, 1) += g.g0[k];
+    *f[k] << g.f[k].g0 + g.f[k].g1 * a, g.f[k].g1 * m(0, 1), g.f[k].g1 * m(1, 0),
+        g.f[k].g0 - g.f[k].g1 * a;
   }
   return out;
 }

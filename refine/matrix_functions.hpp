@@ -11,7 +11,8 @@
 // f
 //   f(M) = g0·I + g1·(M − cI),  g0 = (f(c+δ) + f(c−δ))/2,  g1 = (f(c+δ) − f(c−δ))/(2δ).
 // δ² > 0: real distinct eigenvalues (an overdamped actuator: the paper's, poles −1.455 and
-// −1245.5 rad/s); δ² < 0: complex pair (underdamped); |δ| small: a repeated pair, where the divided
+// −1245.5 rad/s); δ² < 0: complex pair (underdamped), inside the unit disc φ2's series on the
+// pairs (g0, g1) themselves (no eigenvalue needed); |δ| small: a repeated pair, where the divided
 // difference would cancel and a Taylor series in δ² takes over. All three are exercised by
 // tests/refine/test_matrix_functions.cpp against a scaling-and-squaring reference.
 

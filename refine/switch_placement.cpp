@@ -4,11 +4,13 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <vector>
 
 #include "refine/fitted_sweep.hpp"
 #include "refine/model_simulator.hpp"
+#include "refine/outer_update.hpp"
 
 namespace scp::refine {
 
@@ -135,6 +137,33 @@ std::vector<Switch> switch_rows(std::span<const WindowSample> w) {
   return out;
 }
 
+// e^x of the last x asked for: the sweep's decays repeat from sample to sample (a uniform Δ, and
+// without an extension the same θ5), where a call per sample would cost as much as the sums.
+class RepeatedExp {
+ public:
+  double operator()(double x) noexcept {
+    if (x != x_) {
+      x_ = x;
+      value_ = std::exp(x);
+    }
+    return value_;
+  }
+
+ private:
+  double x_ = std::numeric_limits<double>::quiet_NaN();  // never equal: the first call computes
+  double value_ = 0.0;
+};
+
+// JᵀWJ's upper triangle += wx·jx·jxᵀ + wt·jt·jtᵀ, term by term as Eigen's rank updates of it
+// would (the same sums), unrolled over the slots each row can touch: those rank updates' loops
+// over run-time lengths cost as much as the rest of the sweep. The sweep's end copies the upper
+// half to the lower.
+void add_weighted_outer(ParamMatrix& slots, const ParamVector& jx, double wx, const ParamVector& jt,
+                        double wt) {
+  outer_update::add_outer_upper<outer_update::kXRowSlotsExtended>(slots, jx, wx);
+  outer_update::add_outer_upper<outer_update::kTbarRowSlotsExtended>(slots, jt, wt);
+}
+
 Sweep sweep(std::span<const WindowSample> w, const FitResult& fit,
             const std::array<bool, 6>& known) {
   const Tempcos tc = fitted_tempcos(fit);
@@ -149,13 +178,14 @@ Sweep sweep(std::span<const WindowSample> w, const FitResult& fit,
   StretchSums sums(out.stretches);
   std::size_t next = 0;
   double prev_tbar = fit.initial_state[2];
+  RepeatedExp lag_decay, thermal_decay;
   sweep_fitted_model(w, fit, [&](const FittedSample& f) {
     const std::size_t k = f.k;
     const ModelState& s = *f.state;
     if (k > 0) {
       const double dt = w[k].t - w[k - 1].t;
       const ThermalLinearization l = linearize_thermal(fit.theta, tc, prev_tbar, f.thermal_input);
-      const double lag = sensor_lag > 0.0 ? std::exp(-dt / sensor_lag) : 0.0;
+      const double lag = sensor_lag > 0.0 ? lag_decay(-dt / sensor_lag) : 0.0;
       const bool switch_row = next < out.switches.size() && out.switches[next].row == k;
       if (switch_row) {
         const double before = w[k - 1].voltage * w[k - 1].voltage;
@@ -163,7 +193,7 @@ Sweep sweep(std::span<const WindowSample> w, const FitResult& fit,
         const double heat = l.b * (before - after) * dt;
         out.switches[next++].start = {heat, heat * (1.0 - lag)};
       }
-      sums.step(linear_step(std::exp(-l.a * dt), lag), switch_row);
+      sums.step(linear_step(thermal_decay(-l.a * dt), lag), switch_row);
     }
     prev_tbar = s.tbar;
     ParamVector jx = *f.jx, jt = *f.jt;
@@ -173,8 +203,7 @@ Sweep sweep(std::span<const WindowSample> w, const FitResult& fit,
       jt[i] = 0.0;
     }
     const double wrx = wx * (w[k].x - f.x_model), wrt = wt * (w[k].tbar - f.tbar_model);
-    out.slots.selfadjointView<Eigen::Upper>().rankUpdate(jx, wx);
-    out.slots.selfadjointView<Eigen::Upper>().rankUpdate(jt, wt);
+    add_weighted_outer(out.slots, jx, wx, jt, wt);
     out.slots_score += wrx * jx + wrt * jt;
     sums.add(static_x_gain(fit.theta, tc, s), wx, wt, jx, jt, wrx, wrt);
   });

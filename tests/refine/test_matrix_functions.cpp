@@ -78,6 +78,19 @@ TEST(MatrixFunctions, UnderdampedComplexPair) {
   expect_close(companion(4e6, 10.0), 1e-12, "lightly damped, |z| > 1");
 }
 
+// The series' term count steps at |z| = 1/32, 1/4, 1/2 and 1 (the eigenvalues' modulus is
+// τ·√k): each count is tried at the top of its disc, where its truncation is largest.
+TEST(MatrixFunctions, ComplexPairAtEachSeriesLength) {
+  const double k = 20000.0;
+  for (double radius : {1.0 / 32.0, 0.25, 0.5, 1.0}) {
+    for (double fraction : {0.999999, 0.6}) {
+      const double tau = radius * fraction / std::sqrt(k);
+      expect_close(companion(k, 100.0, tau), 1e-13, "underdamped, |z| below a series step");
+      expect_close(companion(k, 1.0, tau), 1e-13, "nearly undamped, |z| below a series step");
+    }
+  }
+}
+
 TEST(MatrixFunctions, RepeatedAndNearlyRepeatedEigenvalues) {
   expect_close(companion(250000.0, 1000.0), 1e-13, "critically damped");
   expect_close(companion(250000.0 * (1 + 1e-9), 1000.0), 1e-13, "δ ≈ 1e-5");
