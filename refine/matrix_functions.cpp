@@ -78,13 +78,23 @@ struct PairAlgebra {
   Pair plus_times(Pair a, Pair b, Pair z) const noexcept {  // a + b·z
     return {a.g0 + b.g0 * z.g0 + delta2 * b.g1 * z.g1, a.g1 + b.g0 * z.g1 + b.g1 * z.g0};
   }
+  Pair linear(double c0, double c1, Pair z) const noexcept {  // c0·I + c1·z
+    return {c0 + c1 * z.g0, c1 * z.g1};
+  }
+};
+
+// The same operations on real numbers: the scalar φ2 of a real z (phi12).
+struct RealAlgebra {
+  double times(double a, double b) const noexcept { return a * b; }
+  double plus_times(double a, double b, double z) const noexcept { return a + b * z; }
+  double linear(double c0, double c1, double z) const noexcept { return c0 + c1 * z; }
 };
 
 // One level of Estrin's order: level[j] = level[2j] + level[2j+1]·power over the first `Width`
 // entries, then the next level with power². A template of its width, so that every loop has a
 // trip count the compiler sees and unrolls, and the entries stay in registers.
-template <std::size_t Width, std::size_t Size>
-Pair fold(const PairAlgebra& algebra, std::array<Pair, Size>& level, Pair power) noexcept {
+template <std::size_t Width, class Algebra, class Value, std::size_t Size>
+Value fold(const Algebra& algebra, std::array<Value, Size>& level, Value power) noexcept {
   if constexpr (Width == 1) {
     return level[0];
   } else {
@@ -96,14 +106,15 @@ Pair fold(const PairAlgebra& algebra, std::array<Pair, Size>& level, Pair power)
   }
 }
 
-// Σ_{j<N} M^j/(j+2)! in Estrin's order: pairs c_{2j} + c_{2j+1}·M, then pairs of those times
-// M², M⁴, ...; a chain of ⌈log2 N⌉ products where Horner's order waits on N − 1 in turn.
-template <std::size_t N>
-Pair phi2_series(const PairAlgebra& algebra, Pair m) noexcept {
-  std::array<Pair, (N + 1) / 2> level{};
+// Σ_{j<N} m^j/(j+2)! in Estrin's order: pairs c_{2j} + c_{2j+1}·m, then pairs of those times
+// m², m⁴, ...; a chain of ⌈log2 N⌉ products where Horner's order waits on N − 1 in turn. On
+// real numbers (RealAlgebra) or on the pairs of a 2×2 matrix (PairAlgebra).
+template <std::size_t N, class Algebra, class Value>
+Value phi2_series(const Algebra& algebra, Value m) noexcept {
+  std::array<Value, (N + 1) / 2> level{};
   for (std::size_t j = 0; j < level.size(); ++j) {
     const double odd = 2 * j + 1 < N ? kPhi2Series[2 * j + 1] : 0.0;
-    level[j] = {kPhi2Series[2 * j] + odd * m.g0, odd * m.g1};
+    level[j] = algebra.linear(kPhi2Series[2 * j], odd, m);
   }
   return fold<(N + 1) / 2>(algebra, level, algebra.times(m, m));
 }
@@ -254,12 +265,9 @@ ExpPhi exp_phi(const Matrix2& m) noexcept {
 
 Phi12 phi12(double z) noexcept {
   if (std::abs(z) <= kShortSeriesRadius) {
-    // Σ_{j<8} z^j/(j+2)! in Estrin's order: three levels of products instead of a chain of eight
-    // (the slow pole of a stiff pair, whose φ waits on nothing else).
-    const auto& c = kPhi2Series;
-    const double z2 = z * z, z4 = z2 * z2;
-    const double p2 = (c[0] + c[1] * z) + z2 * (c[2] + c[3] * z) +
-                      z4 * ((c[4] + c[5] * z) + z2 * (c[6] + c[7] * z));
+    // Eight terms in Estrin's order: three levels of products instead of a chain of eight (the
+    // slow pole of a stiff pair, whose φ waits on nothing else).
+    const double p2 = phi2_series<8>(RealAlgebra{}, z);
     return {1.0 + z * p2, p2};
   }
   if (std::abs(z) < 0.5) {
