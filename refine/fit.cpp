@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <vector>
 
 #include "refine/fitted_sweep.hpp"
@@ -202,9 +203,10 @@ FitResult fit_prepared(std::span<const WindowSample> window, const Vector6& thet
 
 // Rounds of placing the switches and fitting θ again (refine/switch_placement.hpp): the first only
 // where the data ask for a phase per switch (Schwarz's criterion), the others until a step would
-// take less than kSettledDecrease off the weighted cost (χ²: within the noise). The step profiles
-// θ out, but its linear model is approximate (x follows T̄ statically), so θ's refit and another
-// step take what one step left.
+// take less than kSettledDecrease off the weighted cost (χ²: within the noise), which is not taken:
+// θ stays fitted at the phases it was fitted at, and that step's sweep gives the phases' share of
+// the covariance. The step profiles θ out, but its linear model is approximate (x follows T̄
+// statically), so θ's refit and another step take what one step left.
 constexpr int kPlacementRounds = 6;
 constexpr double kSettledDecrease = 1.0;
 
@@ -224,25 +226,38 @@ bool same_extensions(const Extensions& a, const Extensions& b) {
   return true;
 }
 
+// A fit at placed phases and, where the rounds ended on a settled step, what the phases add to
+// its covariance (placed_switches_covariance's, from that step's sweep).
+struct PlacedFit {
+  FitResult fit;
+  std::optional<Matrix6> covariance_share;
+};
+
 // The rounds of placement from `fitted`, each followed by θ's refit of the same model; what the
 // replaced fits cost is added to `cost`.
-FitResult placement_rounds(std::span<WindowSample> prepared, const FitSettings& settings,
+PlacedFit placement_rounds(std::span<WindowSample> prepared, const FitSettings& settings,
                            const FitSettings& refit, FitResult fitted, PlacementStep first,
                            FitCost& cost) {
+  PlacedFit out;
   for (int round = 0; round < kPlacementRounds && fitted.validated; ++round) {
-    const SwitchPlacement placed = place_voltage_switches(
-        prepared, fitted, settings.known, round == 0 ? first : PlacementStep::follows);
+    const SwitchPlacement placed =
+        place_voltage_switches(prepared, fitted, settings.known,
+                               round == 0 ? first : PlacementStep::follows, kSettledDecrease);
     if (placed.placed == 0) break;
     fitted.voltage_switches.placed = placed.placed;
     fitted.voltage_switches.rms_phase_sigma = placed.rms_phase_sigma;
-    if (!(placed.decrease >= kSettledDecrease)) break;
+    if (placed.settled) {
+      out.covariance_share = placed.covariance_share;
+      break;
+    }
     cost.add(fitted);
     FitResult next = refit_same_window(prepared, fitted, refit);
     if (!next.validated) break;  // the fit of the last phases that ran to its verdict stands
     next.voltage_switches = fitted.voltage_switches;
     fitted = std::move(next);
   }
-  return fitted;
+  out.fit = std::move(fitted);
+  return out;
 }
 
 }  // namespace
@@ -252,7 +267,8 @@ FitResult fit_with_placed_switches(std::span<WindowSample> prepared, const FitSe
   FitSettings refit = settings;
   refit.search_scale = false;  // θ1..θ4's common scale is the fitted one's
   FitCost cost;
-  fitted = placement_rounds(prepared, settings, refit, std::move(fitted), first, cost);
+  PlacedFit placed = placement_rounds(prepared, settings, refit, std::move(fitted), first, cost);
+  fitted = std::move(placed.fit);
   // The rounds kept the model of the fit at one phase (with `auto`, fit_placing_switches's
   // extended one); `auto` chooses at the placed phases, where a switch's misplaced heat no
   // longer passes for a missing term, each model weighed at phases of its own. Where the choice
@@ -263,10 +279,11 @@ FitResult fit_with_placed_switches(std::span<WindowSample> prepared, const FitSe
       const bool changed = !same_extensions(next.extensions, fitted.extensions);
       cost.add(fitted);
       next.voltage_switches = fitted.voltage_switches;
-      fitted = std::move(next);
+      placed = {std::move(next), std::nullopt};
       if (changed)
-        fitted = placement_rounds(prepared, settings, refit, std::move(fitted),
+        placed = placement_rounds(prepared, settings, refit, std::move(placed.fit),
                                   PlacementStep::follows, cost);
+      fitted = std::move(placed.fit);
     } else {
       cost.add(next);
     }
@@ -275,7 +292,9 @@ FitResult fit_with_placed_switches(std::span<WindowSample> prepared, const FitSe
   fitted.evaluations += cost.evaluations;
   // σ counts the phases as the unknowns they are.
   if (fitted.voltage_switches.placed > 0 && fitted.validated)
-    add_covariance_share(fitted, placed_switches_covariance(prepared, fitted, settings.known));
+    add_covariance_share(fitted, placed.covariance_share ? *placed.covariance_share
+                                                         : placed_switches_covariance(
+                                                               prepared, fitted, settings.known));
   if (fitted.voltage_switches.placed > 0) fitted.placed_switches = placed_switches(prepared);
   return fitted;
 }

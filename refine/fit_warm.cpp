@@ -103,6 +103,19 @@ StageOptions neighbour_options(const WarmStart& from, const FitState& state,
   return options;
 }
 
+// The joint stage from this window's own solution, its samples changed a little: Gauss–Newton's
+// step first and each trial pass with the covariance's sums (at the start's Newey–West lags, which
+// estimate_covariance uses only where the solution's own residuals choose the same), at the full
+// fit's tolerance. Not where the covariance needs more than one pass (neighbour_options).
+StageOptions same_window_options(const WarmStart& from, const FitState& state,
+                                 const FitSettings& settings, const TrialCovariance& sums) {
+  StageOptions options;
+  options.initial_damping = 0.0;
+  if (from.hac_lags > 0 && !state.delay.ok && !settings.sample_timing_jitter)
+    options.trial_covariance = &sums;
+  return options;
+}
+
 FitResult declined(FitResult& result, WarmFallback why) {
   result.warm = false;
   result.warm_fallback = why;
@@ -177,7 +190,7 @@ WarmFallback applicable(const WarmStart& warm, std::span<const WindowSample> win
 }
 
 FitResult joint_refit(std::span<const WindowSample> prepared, const WarmStart& from,
-                      const FitSettings& settings, int max_iterations, bool neighbour) {
+                      const FitSettings& settings, int max_iterations, RefitStart start) {
   FitResult result;
   result.theta = from.theta;
   result.voltage_interval = from.voltage_interval;
@@ -190,8 +203,12 @@ FitResult joint_refit(std::span<const WindowSample> prepared, const WarmStart& f
   ctx.max_iterations = std::min(ctx.max_iterations, max_iterations);
   FitState state = shifted_state(prepared, from, settings);
   if (state.delay.ok) ctx.budget.set_input_delay(state.delay.delay);
-  const TrialCovariance sums = covariance_sums(ctx, from.hac_lags);
-  if (neighbour) ctx.joint_options = neighbour_options(from, state, settings, sums);
+  TrialCovariance sums = covariance_sums(ctx, from.hac_lags);
+  sums.only_at_own_lags = start == RefitStart::same_window;
+  if (start == RefitStart::neighbour)
+    ctx.joint_options = neighbour_options(from, state, settings, sums);
+  else if (start == RefitStart::same_window)
+    ctx.joint_options = same_window_options(from, state, settings, sums);
   StopReason stop =
       from.sensor_lag_held ? judge_held_lag(ctx, state, from.sensor_lag) : StopReason::none;
   if (stop == StopReason::none) stop = fit_joint(ctx, state);
@@ -218,7 +235,7 @@ FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
   const bool placed = !warm.placed_switches.empty() && prepared.data() == storage.data() &&
                       restore_placed_switches(storage, warm.placed_switches) > 0;
   const FitSettings chosen = with_chosen_extensions(settings, warm.extensions);
-  result = joint_refit(prepared, warm, chosen, kWarmIterations, true);
+  result = joint_refit(prepared, warm, chosen, kWarmIterations, RefitStart::neighbour);
   if (placed && result.validated)
     result = fit_with_placed_switches(storage, chosen, std::move(result), PlacementStep::follows);
   if (settings.voltage_hold == estimator::VoltageHold::foh)
@@ -239,7 +256,7 @@ FitResult refit_same_window(std::span<const WindowSample> prepared, const FitRes
   const WarmStart from = warm_start(fitted, settings, prepared.front());
   FitResult result =
       joint_refit(prepared, from, with_chosen_extensions(settings, fitted.extensions),
-                  std::numeric_limits<int>::max());
+                  std::numeric_limits<int>::max(), RefitStart::same_window);
   carry_choice(fitted.extensions, settings.extensions, result.extensions);
   return result;
 }

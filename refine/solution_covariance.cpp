@@ -61,8 +61,12 @@ void publish_residuals(const FitContext& ctx, const FitState& state, const PassR
 // joint stage's last round, which the noise model's re-estimate then confirmed within its
 // settling tolerance (refine/joint_stage.cpp).
 bool joint_pass_has_the_sums(const FitContext& ctx, const FitState& state) {
-  return ctx.joint_options.trial_covariance != nullptr && state.joint.validator != nullptr &&
-         state.joint.pass.finite && state.joint.p == state.p;
+  const TrialCovariance* sums = ctx.joint_options.trial_covariance;
+  if (sums == nullptr || state.joint.validator == nullptr || !state.joint.pass.finite ||
+      state.joint.p != state.p)
+    return false;
+  return !sums->only_at_own_lags ||
+         sums->hac_bandwidth - 1 == newey_west_lags(ctx, state.joint.pass);
 }
 
 }  // namespace

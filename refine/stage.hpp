@@ -78,6 +78,10 @@ struct TrialCovariance {
   int batches = 0;
   // A fresh validator for a trial at p (θ and the nuisance terms).
   std::function<std::shared_ptr<ResidualValidator>(const ParamVector& p)> validator;
+  // The sums serve the covariance only where the solution's residuals choose hac_bandwidth's lags
+  // too (a refit after its samples changed, whose start's lags were another model's); otherwise
+  // at hac_bandwidth's whatever they choose (a warm refit: the slid window's lags, one or two off).
+  bool only_at_own_lags = false;
 };
 
 // How a stage runs its Levenberg–Marquardt (LmSettings's members of the same names).

@@ -333,12 +333,8 @@ bool phase_step(Placement& p, Eigen::VectorXd& delta, double& decrease) {
   return delta.allFinite() && std::isfinite(decrease);
 }
 
-}  // namespace
-
-Matrix6 placed_switches_covariance(std::span<const WindowSample> prepared, const FitResult& fit,
-                                   const std::array<bool, 6>& known) {
-  Placement p;
-  if (!prepare_placement(prepared, fit, known, p)) return Matrix6::Zero();
+// placed_switches_covariance's share from a placement's sweep.
+Matrix6 covariance_share(Placement& p) {
   // G = C A⁻¹ over θ's columns; the share is Gᵀ S⁻¹ G.
   Eigen::Matrix<double, Eigen::Dynamic, 6> g(p.sweep.cross.rows(), 6);
   for (int j = 0; j < 6; ++j) g.col(j) = p.sweep.cross * p.op->slots_solve(ParamVector::Unit(j));
@@ -348,6 +344,15 @@ Matrix6 placed_switches_covariance(std::span<const WindowSample> prepared, const
   share = 0.5 * (share + share.transpose()).eval();
   if (!share.allFinite()) return Matrix6::Zero();
   return share;
+}
+
+}  // namespace
+
+Matrix6 placed_switches_covariance(std::span<const WindowSample> prepared, const FitResult& fit,
+                                   const std::array<bool, 6>& known) {
+  Placement p;
+  if (!prepare_placement(prepared, fit, known, p)) return Matrix6::Zero();
+  return covariance_share(p);
 }
 
 double placement_decrease(std::span<const WindowSample> prepared, const FitResult& fit,
@@ -360,7 +365,8 @@ double placement_decrease(std::span<const WindowSample> prepared, const FitResul
 }
 
 SwitchPlacement place_voltage_switches(std::span<WindowSample> prepared, const FitResult& fit,
-                                       const std::array<bool, 6>& known, PlacementStep step) {
+                                       const std::array<bool, 6>& known, PlacementStep step,
+                                       double settled_decrease) {
   SwitchPlacement out;
   Placement p;
   if (!prepare_placement(prepared, fit, known, p)) return out;
@@ -371,18 +377,21 @@ SwitchPlacement place_voltage_switches(std::span<WindowSample> prepared, const F
   out.price =
       static_cast<double>(s.switches.size()) * std::log(static_cast<double>(prepared.size()));
   if (step == PlacementStep::needs_evidence && !(out.decrease > out.price)) return out;
+  out.settled = settled_decrease > 0.0 && !(out.decrease >= settled_decrease);
   double variance = 0.0;
   for (std::size_t i = 0; i < s.switches.size(); ++i) {
-    const Switch& sw = s.switches[i];
     const auto at = static_cast<Eigen::Index>(i);
+    variance += 1.0 / diagonal[at];
+    if (out.settled) continue;
+    const Switch& sw = s.switches[i];
     const double phase = std::clamp(sw.phase + delta[at], 0.0, 1.0);
     const WindowSample& prev = prepared[sw.row - 1];
     prepared[sw.row].voltage_since = prev.t + phase * (prepared[sw.row].t - prev.t);
     out.largest_move = std::max(out.largest_move, std::abs(phase - sw.phase));
-    variance += 1.0 / diagonal[at];
   }
   out.placed = s.switches.size();
   out.rms_phase_sigma = std::sqrt(variance / static_cast<double>(s.switches.size()));
+  if (out.settled) out.covariance_share = covariance_share(p);
   return out;
 }
 

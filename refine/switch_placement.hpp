@@ -42,6 +42,11 @@ struct SwitchPlacement {
   // takes off less moves nothing (placed = 0): one phase for all switches fits as well.
   double decrease = 0.0;
   double price = 0.0;
+  // The step would take off less than the caller's settled decrease: nothing moved (`placed` still
+  // counts the switches), and the sweep that showed it gave placed_switches_covariance's share at
+  // the fit.
+  bool settled = false;
+  Matrix6 covariance_share = Matrix6::Zero();
 };
 
 // The first step of a fit decides whether the switches need a phase each; the later ones follow.
@@ -50,10 +55,12 @@ enum class PlacementStep : bool { needs_evidence, follows };
 // Moves voltage_since of every switch row of `prepared` (a foh, smooth window after
 // prepare_window: the rows hold_voltage_switches held, which `fit` fitted; `known` its fixed θ) to
 // where the fit's residuals place it, within its interval. Allocates O(switches); leaves `prepared`
-// as it was when it has no switch, more than kMostPlacedSwitches, the step is not finite, or (the
-// first step) the data do not ask for it.
+// as it was when it has no switch, more than kMostPlacedSwitches, the step is not finite, (the
+// first step) the data do not ask for it, or (settled_decrease > 0) the step would take off less
+// than settled_decrease.
 SwitchPlacement place_voltage_switches(std::span<WindowSample> prepared, const FitResult& fit,
-                                       const std::array<bool, 6>& known, PlacementStep step);
+                                       const std::array<bool, 6>& known, PlacementStep step,
+                                       double settled_decrease = 0.0);
 
 // What the placed phases add to θ's covariance. They are unknowns estimated beside θ, so θ's
 // covariance is the free slots' block of (A − Cᵀ N⁻¹ C)⁻¹ = A⁻¹ + A⁻¹Cᵀ S⁻¹ C A⁻¹ (A = JᵀWJ of

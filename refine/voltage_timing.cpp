@@ -4,6 +4,8 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <optional>
+#include <utility>
 
 #include "refine/heater_power.hpp"
 #include "refine/stages.hpp"
@@ -57,17 +59,35 @@ WindowSample prepared_sample(const WindowSample& prev, const WindowSample& cur,
 namespace {
 
 // The thermal stage's fit (θ5, θ6, T̄0 on T̄ alone) judged by Schwarz's criterion,
-// n·ln σ̂² + k·ln n with k its free slots (∞ when it cannot be fitted), and the sensor lag it
-// estimated.
+// n·ln σ̂² + k·ln n with k its free slots (∞ when it cannot be fitted), the sensor lag it
+// estimated and where it ended.
 struct ThermalCriterion {
   double score = std::numeric_limits<double>::infinity();
   double lag = 0.0;
+  std::optional<ParamVector> solution;
 };
 
-ThermalCriterion thermal_criterion(std::span<const WindowSample> window, const Vector6& theta_start,
+// Where a candidate's thermal fit starts: where `from` ended (the free lag's fit from the held
+// lag's at the same timing: its lag 0 is where an estimated lag starts, and one pass less), else
+// the fit's own start; the nuisance terms held where `settings` hold them.
+ParamVector thermal_start(std::span<const WindowSample> window, const Vector6& theta_start,
+                          const FitSettings& settings, const ThermalCriterion* from = nullptr) {
+  ParamVector p = from != nullptr && from->solution
+                      ? *from->solution
+                      : start_point(window, theta_start, settings.known);
+  const NuisanceSettings& n = settings.nuisance;
+  for (const auto& [slot, setting] :
+       {std::pair{kXZeroSlot, n.x_zero}, std::pair{kAmbientOffsetSlot, n.ambient_offset},
+        std::pair{kAmbientDriftSlot, n.ambient_drift}, std::pair{kSensorLagSlot, n.sensor_lag}}) {
+    if (setting.fixed) p[slot] = setting.value;
+  }
+  return p;
+}
+
+ThermalCriterion thermal_criterion(std::span<const WindowSample> window, const ParamVector& start,
                                    const FitSettings& settings) {
   FitState state;
-  state.p = start_point(window, theta_start, settings.known);
+  state.p = start;
   if (!state.p.allFinite()) return {};
   FitContext ctx(window, settings);
   if (fit_thermal(ctx, state) != StopReason::none) return {};
@@ -76,7 +96,7 @@ ThermalCriterion thermal_criterion(std::span<const WindowSample> window, const V
   int k = 0;
   for (const bool f : thermal_slots(settings)) k += f ? 1 : 0;
   const double n = static_cast<double>(window.size());
-  return {n * std::log(variance) + k * std::log(n), state.p[kSensorLagSlot]};
+  return {n * std::log(variance) + k * std::log(n), state.p[kSensorLagSlot], state.p};
 }
 
 // A lag this many sampling periods long or shorter is what a one-period shift of the voltage
@@ -114,7 +134,8 @@ PhasedCriterion best_switch_phase(std::span<const WindowSample> window, VoltageI
         window, settings.voltage_hold, interval, storage, settings.voltage_shape, phase);
     const std::size_t count =
         settings.voltage_hold == estimator::VoltageHold::foh ? count_voltage_switches(prepared) : 0;
-    const ThermalCriterion c = thermal_criterion(prepared, theta_start, settings);
+    const ThermalCriterion c =
+        thermal_criterion(prepared, thermal_start(prepared, theta_start, settings), settings);
     if (phase == kSwitchPhases.front() || c.score < best.criterion.score)
       best = {c, {count, phase}};
     if (count == 0) break;
@@ -170,7 +191,8 @@ IntervalChoice weigh_voltage_interval(std::span<const WindowSample> window,
     const std::span<const WindowSample> prepared =
         prepare_window(window, settings.voltage_hold, intervals[i], storage, settings.voltage_shape,
                        switches[i].phase);
-    free_fit[i] = thermal_criterion(prepared, theta_start, settings);
+    free_fit[i] = thermal_criterion(
+        prepared, thermal_start(prepared, theta_start, settings, &held_fit[i]), settings);
   }
   IntervalChoice choice = pick_interval(held_fit, free_fit, lag_free, window);
   const bool after = choice.interval == VoltageInterval::after;

@@ -86,18 +86,30 @@ WarmFallback applicable(const WarmStart& warm, std::span<const WindowSample> win
 FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
                 const FitSettings& settings);
 
+// Where a joint refit starts, which sets how its stage runs.
+enum class RefitStart {
+  // anywhere: the full fit's joint stage, its tolerance and a covariance pass of its own
+  fit,
+  // a converged neighbour's solution (the warm refit): Gauss–Newton's step first, convergence at
+  // kWarmDecrementTolerance, the covariance from the pass that shows it
+  neighbour,
+  // this window's own solution before a small change of its samples (the switches placed anew):
+  // Gauss–Newton's step first, the full fit's tolerance, the covariance from the pass that shows
+  // convergence where the Newey–West lags the solution's residuals choose are the start's
+  same_window,
+};
+
 // The joint stage, the covariance and the verdict on a window already prepared
 // (refine/voltage_timing.hpp), from `from`'s solution at the window's first sample, with at most
 // `max_iterations` per round of the noise model: the end of a fit whose start is known. Returns
-// whatever it reached (converged or not, with its residuals where the stage ran). `neighbour`:
-// `from` is a converged neighbour's solution (the warm refit): Gauss–Newton's step first,
-// convergence at kWarmDecrementTolerance, the covariance from the pass that shows it.
+// whatever it reached (converged or not, with its residuals where the stage ran).
 FitResult joint_refit(std::span<const WindowSample> prepared, const WarmStart& from,
-                      const FitSettings& settings, int max_iterations, bool neighbour = false);
+                      const FitSettings& settings, int max_iterations,
+                      RefitStart start = RefitStart::fit);
 
 // θ fitted again on the window `fitted` fitted, prepared alike but for a small change of its
 // samples (the switches placed anew: refine/switch_placement.hpp): the joint stage from `fitted`'s
-// solution at the full fit's tolerance, its model and its choices (extensions, lag held, delay,
+// solution (RefitStart::same_window), its model and its choices (extensions, lag held, delay,
 // noise model) kept.
 FitResult refit_same_window(std::span<const WindowSample> prepared, const FitResult& fitted,
                             const FitSettings& settings);

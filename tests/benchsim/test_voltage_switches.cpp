@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "refine/fit.hpp"
+#include "refine/switch_placement.hpp"
 #include "refine/voltage_timing.hpp"
 #include "refine/warm_start.hpp"
 #include "tests/benchsim/bench_window.hpp"
@@ -202,6 +203,96 @@ TEST(VoltageSwitches, AWarmRefitKeepsThePlacedSwitches) {
       refine::verdict_name(one_phase.validation.thermal.verdict));
   EXPECT_FALSE(one_phase.warm);
   EXPECT_EQ(one_phase.warm_fallback, refine::WarmFallback::structure_found);
+}
+
+// A 120 s light-stiff window at N1 from a generator 37 ppm off the DAQ's clock, its fit (its
+// switches placed), and the window prepared as the fit read it: its interval, its phase, its
+// switches where it placed them.
+struct PlacedWindow {
+  refine::FitSettings settings = foh(refine::VoltageShape::smooth);
+  refine::FitResult fit;
+  std::vector<refine::WindowSample> prepared;
+};
+
+PlacedWindow placed_window() {
+  BenchFile f = test::light_stiff(120.0);
+  f.clock = {.rate_error = 37e-6, .offset_s = 3.1e-4};
+  apply_noise_level("N1", f.sim);
+  const std::vector<refine::WindowSample> w = test::window_of(f);
+  PlacedWindow out;
+  out.fit = refine::fit(w, test::theta_of(f) * 1.1, out.settings);
+  std::vector<refine::WindowSample> storage;
+  const std::span<const refine::WindowSample> prepared =
+      refine::prepare_window(w, out.settings.voltage_hold, out.fit.voltage_interval, storage,
+                             out.settings.voltage_shape, out.fit.voltage_switches.phase);
+  out.prepared.assign(prepared.begin(), prepared.end());
+  refine::restore_placed_switches(out.prepared, out.fit.placed_switches);
+  return out;
+}
+
+// The placement rounds end on a step that would take less than 1 off χ²: that step moves nothing
+// (θ stays fitted at the phases it was fitted at) and its sweep gives the phases' share of the
+// covariance, to the bit the share a sweep of its own gives. A step asked to move does.
+TEST(VoltageSwitches, ASettledStepMovesNothingAndItsSweepGivesTheShare) {
+  PlacedWindow p = placed_window();
+  const refine::FitResult& r = p.fit;
+  const refine::FitSettings& settings = p.settings;
+  std::vector<refine::WindowSample>& prepared = p.prepared;
+  ASSERT_TRUE(r.converged) << r.message;
+  ASSERT_GT(r.voltage_switches.placed, 0u);
+  const std::vector<refine::PlacedSwitch> before = refine::placed_switches(prepared);
+
+  const refine::SwitchPlacement settled = refine::place_voltage_switches(
+      prepared, r, settings.known, refine::PlacementStep::follows, 1e300);
+  ASSERT_TRUE(settled.settled);
+  EXPECT_EQ(settled.placed, r.voltage_switches.placed);
+  EXPECT_EQ(settled.largest_move, 0.0);
+  const std::vector<refine::PlacedSwitch> after = refine::placed_switches(prepared);
+  ASSERT_EQ(after.size(), before.size());
+  for (std::size_t i = 0; i < after.size(); ++i) EXPECT_EQ(after[i].since, before[i].since);
+  const refine::Matrix6 share = refine::placed_switches_covariance(prepared, r, settings.known);
+  EXPECT_GT(share.diagonal().minCoeff(), 0.0);
+  EXPECT_EQ(settled.covariance_share, share);
+
+  const refine::SwitchPlacement moved =
+      refine::place_voltage_switches(prepared, r, settings.known, refine::PlacementStep::follows);
+  std::printf("settled step: decrease %.3g; the step taken moved a phase by %.3g\n",
+              settled.decrease, moved.largest_move);
+  EXPECT_FALSE(moved.settled);
+  EXPECT_GT(moved.largest_move, 0.0);
+}
+
+// θ's refit after a placement starts with the covariance's sums at the last fit's Newey–West lags
+// and uses them only where the solution's own residuals choose the same: the rounds after the fit
+// at one phase (whose residuals chose 278 lags against 23 on a 300 s light-stiff window) publish
+// the lags a refit of the same solution chooses, and a refit that steps from a start whose lags
+// were another model's publishes its own solution's lags and the same σ.
+TEST(VoltageSwitches, ARefitAfterAPlacementTakesTheLagsOfItsOwnSolution) {
+  const PlacedWindow p = placed_window();
+  const refine::FitResult& r = p.fit;
+  const refine::FitSettings& settings = p.settings;
+  const std::vector<refine::WindowSample>& prepared = p.prepared;
+  ASSERT_TRUE(r.converged) << r.message;
+  ASSERT_GT(r.hac_lags, 0);
+  const refine::FitResult same = refine::refit_same_window(prepared, r, settings);
+  ASSERT_TRUE(same.validated);
+  EXPECT_EQ(same.hac_lags, r.hac_lags);
+
+  // Two σ off along every θ, so that the refit steps and its last pass carries the sums.
+  refine::FitResult off = r;
+  off.theta += 2.0 * r.sigma;
+  const refine::FitResult from_off = refine::refit_same_window(prepared, off, settings);
+  off.hac_lags = 5 * r.hac_lags + 7;
+  const refine::FitResult from_other = refine::refit_same_window(prepared, off, settings);
+  ASSERT_TRUE(from_off.validated && from_other.validated);
+  std::printf("lags: fit %d, refit %d; from 2 sigma off %d (%d passes), with lags %d: %d\n",
+              r.hac_lags, same.hac_lags, from_off.hac_lags, from_off.evaluations, off.hac_lags,
+              from_other.hac_lags);
+  EXPECT_EQ(from_other.hac_lags, from_off.hac_lags);
+  // The same solution's covariance, from its own pass or from the last trial's (whose noise
+  // weights the re-estimate confirmed within its settling tolerance): 1.4e-6 apart.
+  const refine::Vector6 ratio = from_other.sigma.cwiseQuotient(from_off.sigma);
+  EXPECT_LT((ratio.array() - 1.0).abs().maxCoeff(), 1e-4);
 }
 
 // Switches anywhere in their intervals (12.3 ms bits against 1 ms rows): the rows cannot say where
