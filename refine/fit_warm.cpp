@@ -166,6 +166,10 @@ FitSettings with_chosen_extensions(const FitSettings& settings, const Extensions
 }
 
 void shift(WarmStart& warm, const WindowSample& from, const WindowSample& next) noexcept {
+  // One that cannot apply is not stepped: applicable() declines it before it reads the
+  // trajectory, whose simulation, where the fit went unstable, overflows at every sample (libm's
+  // overflow path: 0.1 ms a sample).
+  if (!warm.converged || !warm.state.allFinite()) return;
   const WindowSample to =
       prepared_sample(from, next, warm.settings.voltage_hold, warm.voltage_interval);
   ModelState s{warm.state[0], warm.state[1], warm.state[2]};

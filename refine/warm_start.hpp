@@ -68,7 +68,8 @@ WarmStart warm_start(const FitResult& fit, const FitSettings& settings, const Wi
 
 // Steps `warm` from its sample, recorded as `from`, to `next`, the sample recorded after it: the
 // previous fit's model over that interval (as its window read it), the ambient offset moved by
-// its drift.
+// its drift. A warm start of a fit that did not converge, or whose trajectory left the finite
+// numbers, stays where it is (applicable() declines it either way).
 void shift(WarmStart& warm, const WindowSample& from, const WindowSample& next) noexcept;
 
 // WarmFallback::none when `warm` can seed a fit of `window` under `settings`: the previous fit

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -159,6 +160,27 @@ TEST_F(Fallback, WhenThePreviousFitDidNotConverge) {
   WarmStart w = warm();
   w.converged = false;
   EXPECT_EQ(refit(second(), w, estimating()).warm_fallback, WarmFallback::not_converged_before);
+}
+
+// The daemon steps the warm start of every fit along its window, converged or not (the refit
+// then says why it declined); one that did not converge, or whose model overflowed, is left where
+// it is: its refit is declined the same, and an unstable model's simulation costs libm's overflow
+// path at every sample.
+TEST_F(Fallback, AWarmStartThatCannotApplyIsNotStepped) {
+  WarmStart w = warm_start(*first_, estimating(), record_->front());
+  w.converged = false;
+  const WarmStart before = w;
+  shift(w, (*record_)[0], (*record_)[1]);
+  EXPECT_EQ(w.at.t, before.at.t);
+  EXPECT_EQ(w.state, before.state);
+  w.converged = true;
+  w.state[2] = std::numeric_limits<double>::infinity();
+  shift(w, (*record_)[0], (*record_)[1]);
+  EXPECT_EQ(w.at.t, before.at.t);
+  w.state = before.state;
+  shift(w, (*record_)[0], (*record_)[1]);
+  EXPECT_EQ(w.at.t, (*record_)[1].t);
+  EXPECT_NE(w.state, before.state);
 }
 
 TEST_F(Fallback, WhenTheTrajectoryIsNotAtTheWindowsStart) {
