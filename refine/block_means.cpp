@@ -116,4 +116,10 @@ Eigen::VectorXd BlockMeans::counts() const {
   return c;
 }
 
+std::vector<long> BlockMeans::indices() const {
+  std::vector<long> out(index_.begin(), index_.begin() + static_cast<long>(closed_));
+  if (open_count_ > 0.0) out.push_back(open_index_);
+  return out;
+}
+
 }  // namespace scp::refine

@@ -35,6 +35,10 @@ class BlockMeans {
   // The block means (M × fields) of the closed blocks and the open one, and their sample counts.
   Eigen::MatrixXd means() const;
   Eigen::VectorXd counts() const;
+  // Where those rows lie: the first sample's t (t0) and each row's index i, the block
+  // [t0 + i·block_s, t0 + (i + 1)·block_s) at the current block_s.
+  double t0() const noexcept { return t0_; }
+  std::vector<long> indices() const;
 
  private:
   double* enter(double t) noexcept;

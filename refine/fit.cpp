@@ -22,6 +22,7 @@
 #include "refine/information_criteria.hpp"
 #include "refine/interval_averaging.hpp"
 #include "refine/stages.hpp"
+#include "refine/switch_columns.hpp"
 #include "refine/switch_placement.hpp"
 #include "refine/voltage_timing.hpp"
 #include "refine/warm_start.hpp"
@@ -205,8 +206,8 @@ FitResult fit_prepared(std::span<const WindowSample> window, const Vector6& thet
 // where the data ask for a phase per switch (Schwarz's criterion), the others until a step would
 // take less than kSettledDecrease off the weighted cost (χ²: within the noise), which is not taken:
 // θ stays fitted at the phases it was fitted at, and that step's sweep gives the phases' share of
-// the covariance. The step profiles θ out, but its linear model is approximate (x follows T̄
-// statically), so θ's refit and another step take what one step left.
+// the covariance. The step profiles θ out, but its model is linear in the phases (and θ's
+// nonlinear), so θ's refit and another step take what one step left.
 constexpr int kPlacementRounds = 6;
 constexpr double kSettledDecrease = 1.0;
 
@@ -295,7 +296,13 @@ FitResult fit_with_placed_switches(std::span<WindowSample> prepared, const FitSe
     add_covariance_share(fitted, placed.covariance_share ? *placed.covariance_share
                                                          : placed_switches_covariance(
                                                                prepared, fitted, settings.known));
-  if (fitted.voltage_switches.placed > 0) fitted.placed_switches = placed_switches(prepared);
+  if (fitted.voltage_switches.placed > 0) {
+    fitted.placed_switches = placed_switches(prepared);
+    // The final pass's validation left the phases out of what the fit explains.
+    if (fitted.validated && fitted.validator != nullptr)
+      fitted.validation = fitted.validator->finish(
+          placed_switch_columns(prepared, fitted, fitted.validator->thermal_layout()));
+  }
   return fitted;
 }
 
@@ -483,6 +490,12 @@ FitResult fit_checked(std::span<const WindowSample> window, const Vector6& theta
   return result;
 }
 
+// The final pass's validator (its block means, a few MB) serves the fit's own tests only.
+FitResult without_validator(FitResult result) {
+  result.validator.reset();
+  return result;
+}
+
 }  // namespace
 
 FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
@@ -492,7 +505,8 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
     result.theta = theta_start;
     return ended(result, bad);
   }
-  if (!measures_current(window)) return fit_checked(window, theta_start, settings);
+  if (!measures_current(window))
+    return without_validator(fit_checked(window, theta_start, settings));
   // The measured power carries R(T̄): the resistance's extension has nothing left to model.
   FitSettings power = settings;
   power.extensions.resistance_tempco = ExtensionMode::off;
@@ -504,7 +518,7 @@ FitResult fit(std::span<const WindowSample> window, const Vector6& theta_start,
   }
   FitResult result = fit_checked(window, theta_start, power);
   publish_measured_power(window, result);
-  return result;
+  return without_validator(std::move(result));
 }
 
 }  // namespace scp::refine

@@ -17,6 +17,7 @@
 #include <atomic>
 #include <cstddef>
 #include <limits>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -215,6 +216,10 @@ struct FitResult {
   // The model validation of the final pass (refine/validation.hpp); `validated` once it ran.
   ValidationReport validation;
   bool validated = false;
+  // The final pass's validator, whose block means a test of more fitted parameters than its
+  // samples carried reruns on (the placed switches' phases, refine/fit.cpp); released before
+  // refine::fit returns.
+  std::shared_ptr<const ResidualValidator> validator;
   // FitSettings::warm: whether this is the warm refit's result, or why the full fit was run
   // instead (its iterations and evaluations then include the warm attempt's).
   bool warm = false;

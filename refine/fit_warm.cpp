@@ -226,8 +226,10 @@ FitResult joint_refit(std::span<const WindowSample> prepared, const WarmStart& f
   return result;
 }
 
-FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
-                const FitSettings& settings) {
+namespace {
+
+FitResult refit_window(std::span<const WindowSample> window, const WarmStart& warm,
+                       const FitSettings& settings) {
   FitResult result;
   result.theta = warm.theta;
   if (const WarmFallback why = applicable(warm, window, settings); why != WarmFallback::none)
@@ -252,6 +254,15 @@ FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
   add_interval_covariance(result, warm.interval_covariance);
   result.warm = true;
   result.warm_fallback = WarmFallback::none;
+  return result;
+}
+
+}  // namespace
+
+FitResult refit(std::span<const WindowSample> window, const WarmStart& warm,
+                const FitSettings& settings) {
+  FitResult result = refit_window(window, warm, settings);
+  result.validator.reset();  // its block means served the fit's own tests
   return result;
 }
 

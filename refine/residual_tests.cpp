@@ -3,6 +3,7 @@
 #include <Eigen/QR>
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "refine/probability.hpp"
 
@@ -17,6 +18,16 @@ using Eigen::VectorXd;
 // A pivot below this fraction of the largest (columns scaled to unit norm) is taken as zero: far
 // below any direction the data can show, far above rounding (1e-16).
 constexpr double kRankThreshold = 1e-10;
+
+// 1/‖column‖ of each column of A (0 for a zero column).
+VectorXd unit_columns(const MatrixXd& a) {
+  VectorXd scale(a.cols());
+  for (Index j = 0; j < a.cols(); ++j) {
+    const double n = a.col(j).norm();
+    scale[j] = n > 0.0 ? 1.0 / n : 0.0;
+  }
+  return scale;
+}
 
 struct LeastSquares {
   double rss = 0.0;
@@ -33,11 +44,7 @@ LeastSquares least_squares(const MatrixXd& a, const VectorXd& y) {
     out.rss = y.squaredNorm();
     return out;
   }
-  VectorXd scale(a.cols());
-  for (Eigen::Index j = 0; j < a.cols(); ++j) {
-    const double n = a.col(j).norm();
-    scale[j] = n > 0.0 ? 1.0 / n : 0.0;
-  }
+  const VectorXd scale = unit_columns(a);
   const MatrixXd scaled = a * scale.asDiagonal();
   Eigen::ColPivHouseholderQR<MatrixXd> qr(scaled);
   qr.setThreshold(kRankThreshold);
@@ -103,6 +110,22 @@ FTest f_test(const Nested& n, int rows, int lost) {
   return t;
 }
 
+// The columns of A (scaled to unit norm) that span it, in their order.
+MatrixXd spanning_columns(const MatrixXd& a) {
+  if (a.cols() == 0) return a;
+  const MatrixXd scaled = a * unit_columns(a).asDiagonal();
+  Eigen::ColPivHouseholderQR<MatrixXd> qr(scaled);
+  qr.setThreshold(kRankThreshold);
+  std::vector<Index> kept(static_cast<std::size_t>(qr.rank()));
+  for (Index j = 0; j < qr.rank(); ++j)
+    kept[static_cast<std::size_t>(j)] = qr.colsPermutation().indices()[j];
+  std::sort(kept.begin(), kept.end());
+  MatrixXd out(a.rows(), static_cast<Index>(kept.size()));
+  for (std::size_t j = 0; j < kept.size(); ++j)
+    out.col(static_cast<Index>(j)) = scaled.col(kept[j]);
+  return out;
+}
+
 }  // namespace
 
 PortmanteauResult ljung_box(const VectorXd& e, int lags) {
@@ -122,6 +145,45 @@ PortmanteauResult ljung_box(const VectorXd& e, int lags) {
   out.lags = lags;
   out.p_value = chi_square_survival(out.statistic, lags);
   return out;
+}
+
+VectorXd recursive_residuals(const VectorXd& y, const MatrixXd& x, const VectorXd& weights) {
+  const Index m = y.size();
+  const VectorXd root = weights.cwiseMax(0.0).cwiseSqrt();
+  const MatrixXd a = spanning_columns(root.asDiagonal() * x);
+  const Index p = a.cols();
+  // The square-root information of the rows so far, [R | Qᵀy] row by row (a row of R that no
+  // row has reached yet is empty): each new row is rotated into it (Givens), and what is left of
+  // its y once its regressors are annihilated is its recursive residual.
+  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  RowMajor r = RowMajor::Zero(p, p + 1);
+  std::vector<bool> filled(static_cast<std::size_t>(p), false);
+  Eigen::RowVectorXd row(p + 1);
+  VectorXd out(m);
+  Index n = 0;
+  for (Index b = 0; b < m; ++b) {
+    row << a.row(b), root[b] * y[b];
+    const double negligible = kNewDirection * row.head(p).norm();
+    bool new_direction = false;
+    for (Index i = 0; i < p && !new_direction; ++i) {
+      if (!(std::abs(row[i]) > negligible)) continue;
+      if (!filled[static_cast<std::size_t>(i)]) {
+        r.row(i) = row;
+        filled[static_cast<std::size_t>(i)] = true;
+        new_direction = true;
+        continue;
+      }
+      const double h = std::hypot(r(i, i), row[i]);
+      const double c = r(i, i) / h, s = row[i] / h;
+      for (Index j = i; j <= p; ++j) {
+        const double top = r(i, j), bottom = row[j];
+        r(i, j) = c * top + s * bottom;
+        row[j] = c * bottom - s * top;
+      }
+    }
+    if (!new_direction) out[n++] = row[p];
+  }
+  return out.head(n);
 }
 
 NestedTestResult nested_f_test(const VectorXd& y, const MatrixXd& x, const MatrixXd& z,

@@ -17,6 +17,23 @@ struct PortmanteauResult {
 };
 PortmanteauResult ljung_box(const Eigen::VectorXd& e, int lags);
 
+// Recursive residuals (Brown, Durbin & Evans 1975) of y on X, rows weighted by `weights`: row
+// b's error of prediction by the least-squares fit of the rows before it, standardized,
+//   w_b = (y_b − x_bᵀβ̂_{b−1}) / √(1 + x_bᵀ(X_{b−1}ᵀX_{b−1})⁻¹x_b),
+// in the rows' order; a row that brings a direction of X the rows before it lack has none (M −
+// rank X of them). For white Gaussian errors they are independent N(0, σ²) whatever X is, where
+// the residuals of the fit are not: a fit with parameters of local reach (a phase per voltage
+// switch, each explaining a few blocks after its switch) leaves those blocks' residuals
+// negatively correlated by construction, which Ljung–Box on them reads as colour (and so does
+// Breusch–Godfrey's test, whose F holds only for few parameters per row). Coloured errors stay
+// coloured in w: Ljung–Box on w tests whiteness beyond what the fit explains.
+Eigen::VectorXd recursive_residuals(const Eigen::VectorXd& y, const Eigen::MatrixXd& x,
+                                    const Eigen::VectorXd& weights);
+
+// A regressor smaller than this fraction of its row's norm, once the rows before it are rotated
+// out, is rounding: not a direction of its own.
+inline constexpr double kNewDirection = 1e-12;
+
 // Does Z explain y beyond X? Weighted least squares of y on [X, Z] against y on X alone, rows
 // weighted by `weights` (block means of unequal sample counts; all ones for equal blocks), and the
 // F statistic of the decrease in the residual sum of squares:

@@ -108,6 +108,7 @@ CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, Fi
   }
   if (pass.finite) {
     result.validation = validator->finish();
+    result.validator = validator;
     result.validated = true;
   }
   ParamMatrix white = ParamMatrix::Zero(), hac = ParamMatrix::Zero();

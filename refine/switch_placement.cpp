@@ -11,33 +11,36 @@
 #include "refine/fitted_sweep.hpp"
 #include "refine/model_simulator.hpp"
 #include "refine/outer_update.hpp"
+#include "refine/switch_perturbation.hpp"
+#include "refine/validate_fit.hpp"
 
 namespace scp::refine {
 
 namespace {
 
+using switch_model::kReading;
+using switch_model::kX;
+using switch_model::OutputRow;
+using switch_model::Outputs;
+using switch_model::Perturbation;
+using switch_model::PerturbationMap;
+using switch_model::PerturbationSteps;
+using switch_model::Switch;
+using switch_model::switch_rows;
+
 using SwitchMatrix = Eigen::Matrix<double, Eigen::Dynamic, kParams>;
-
-// A switch row and what moving its switch does to the model.
-struct Switch {
-  std::size_t row = 0;
-  double phase = 0.0;  // where it is now: 0 at the previous sample, 1 at the row
-  // The perturbation (D, y) of T̄ and of its reading at the row per unit of phase later:
-  // heat·(1, 1 − lag), heat = θ6·(A² − B²)·Δ at the local heating.
-  Eigen::Vector2d start = Eigen::Vector2d::Zero();
-};
-
 // The model linearised about the fit's trajectory, per sample k (the interval (t_{k−1}, t_k]): a
 // perturbation D of T̄ decays by `decay`, the sensor's reading y follows it (y_k = lag·y_{k−1} +
-// (1 − lag)·D_k), and x moves by `x_gain`·D (the mechanical block's static response). So (D, y)
-// at k is a fixed 2×2 image of (D, y) at any earlier k, and what a perturbation does over the
-// stretch between two switch rows is linear in the state it enters the stretch with: one sweep
-// sums each stretch for a unit start, and the switches are then carried over the stretches.
+// (1 − lag)·D_k), and x's (δx, δẋ) follow the mechanical block linearised about the trajectory,
+// driven by D. So the perturbation at k is a fixed 4×4 image of it at any earlier k, and what it
+// does over the stretch between two switch rows is linear in the state it enters the stretch
+// with: one sweep sums each stretch for a unit start, and the switches are then carried over the
+// stretches.
 struct Stretch {
-  Eigen::Matrix<double, kParams, 2> cross = Eigen::Matrix<double, kParams, 2>::Zero();  // JᵀW·O
-  Eigen::Matrix2d quadratic = Eigen::Matrix2d::Zero();                                  // OᵀW·O
-  Eigen::Vector2d residual = Eigen::Vector2d::Zero();                                   // OᵀW·r
-  Eigen::Matrix2d onward = Eigen::Matrix2d::Zero();  // (D, y) at the next switch row
+  Eigen::Matrix<double, kParams, 4> cross = Eigen::Matrix<double, kParams, 4>::Zero();  // JᵀW·O
+  PerturbationMap quadratic = PerturbationMap::Zero();                                  // OᵀW·O
+  Perturbation residual = Perturbation::Zero();                                         // OᵀW·r
+  PerturbationMap onward = PerturbationMap::Zero();  // the perturbation at the next switch row
 };
 
 // What one sweep of the fitted model gives: the switches, the stretches from each switch row to
@@ -52,31 +55,14 @@ struct Sweep {
   ParamVector slots_score = ParamVector::Zero();
 };
 
-// ∂x/∂T̄ at rest in the mechanical block m ẍ + (b + α1 T̄) ẋ + k(1 − κT̄) x = −α2 T̄, about the
-// trajectory's x and ẋ.
-double static_x_gain(const Vector6& theta, const Tempcos& tc, const ModelState& s) {
-  const double stiffness = theta[kStiffness] * (1.0 - tc.kappa * s.tbar);
-  if (!(std::abs(stiffness) > 0.0)) return 0.0;
-  return -(theta[kThermalForce] + theta[kDampingSlope] * s.xdot -
-           theta[kStiffness] * tc.kappa * s.x) /
-         stiffness;
-}
-
-// (D, y) at k from (D, y) at k − 1.
-Eigen::Matrix2d linear_step(double decay, double lag) {
-  Eigen::Matrix2d a;
-  a << decay, 0.0, (1.0 - lag) * decay, lag;
-  return a;
-}
-
-// Sums the stretches during the sweep: psi_ is (D, y) at the current sample per unit start of
-// the current stretch.
+// Sums the stretches during the sweep: psi_ is the perturbation at the current sample per unit
+// start of the current stretch.
 class StretchSums {
  public:
   explicit StretchSums(std::vector<Stretch>& out) : out_(out) {}
 
   // Sample k's step; `switch_row`: a switch starts at k (its own stretch, from k's sample on).
-  void step(const Eigen::Matrix2d& step, bool switch_row) {
+  void step(const PerturbationMap& step, bool switch_row) {
     if (!switch_row) {
       psi_ = step * psi_;
       return;
@@ -86,12 +72,12 @@ class StretchSums {
     psi_.setIdentity();
   }
 
-  // Sample k's outputs per unit start: x = x_gain·D and T̄'s reading y, weighted wx, wt.
-  void add(double x_gain, double wx, double wt, const ParamVector& jx, const ParamVector& jt,
-           double wrx, double wrt) {
+  // Sample k's outputs per unit start: δx and T̄'s reading y, weighted wx, wt.
+  void add(double wx, double wt, const ParamVector& jx, const ParamVector& jt, double wrx,
+           double wrt) {
     if (out_.empty()) return;
     Stretch& s = out_.back();
-    const Eigen::RowVector2d ox = x_gain * psi_.row(0), oy = psi_.row(1);
+    const OutputRow ox = psi_.row(kX), oy = psi_.row(kReading);
     s.cross.noalias() += (wx * jx) * ox + (wt * jt) * oy;
     s.quadratic.noalias() += wx * ox.transpose() * ox + wt * oy.transpose() * oy;
     s.residual.noalias() += wrx * ox.transpose() + wrt * oy.transpose();
@@ -99,7 +85,7 @@ class StretchSums {
 
  private:
   std::vector<Stretch>& out_;
-  Eigen::Matrix2d psi_ = Eigen::Matrix2d::Identity();
+  PerturbationMap psi_ = PerturbationMap::Identity();
 };
 
 // Each switch's columns, carried back from the window's end over the stretches: C_j = S_j +
@@ -109,50 +95,21 @@ void switch_columns(Sweep& s) {
   s.diagonal = Eigen::VectorXd::Zero(n);
   s.score = Eigen::VectorXd::Zero(n);
   s.cross = SwitchMatrix::Zero(n, kParams);
-  Eigen::Matrix<double, kParams, 2> c = Eigen::Matrix<double, kParams, 2>::Zero();
-  Eigen::Matrix2d q = Eigen::Matrix2d::Zero();
-  Eigen::Vector2d g = Eigen::Vector2d::Zero();
+  Eigen::Matrix<double, kParams, 4> c = Eigen::Matrix<double, kParams, 4>::Zero();
+  PerturbationMap q = PerturbationMap::Zero();
+  Perturbation g = Perturbation::Zero();
   for (std::size_t j = s.stretches.size(); j-- > 0;) {
     const Stretch& st = s.stretches[j];
     c = st.cross + c * st.onward;
     q = st.quadratic + st.onward.transpose() * q * st.onward;
     g = st.residual + st.onward.transpose() * g;
-    const Eigen::Vector2d& start = s.switches[j].start;
+    const Perturbation& start = s.switches[j].start;
     const auto at = static_cast<Eigen::Index>(j);
     s.cross.row(at) = (c * start).transpose();
     s.diagonal[at] = start.dot(q * start);
     s.score[at] = start.dot(g);
   }
 }
-
-// The rows a foh window holds (hold_voltage_switches' switches), at their phases; start unset.
-std::vector<Switch> switch_rows(std::span<const WindowSample> w) {
-  std::vector<Switch> out;
-  for (std::size_t k = 1; k < w.size(); ++k) {
-    const double dt = w[k].t - w[k - 1].t;
-    if (w[k].voltage_ramp || !(dt > 0.0)) continue;
-    out.push_back(
-        {k, std::clamp((w[k].voltage_since - w[k - 1].t) / dt, 0.0, 1.0), Eigen::Vector2d::Zero()});
-  }
-  return out;
-}
-
-// e^x of the last x asked for: the sweep's decays repeat from sample to sample (a uniform Δ, and
-// without an extension the same θ5), where a call per sample would cost as much as the sums.
-class RepeatedExp {
- public:
-  double operator()(double x) noexcept {
-    if (x != x_) {
-      x_ = x;
-      value_ = std::exp(x);
-    }
-    return value_;
-  }
-
- private:
-  double x_ = std::numeric_limits<double>::quiet_NaN();  // never equal: the first call computes
-  double value_ = 0.0;
-};
 
 // JᵀWJ's upper triangle += wx·jx·jxᵀ + wt·jt·jtᵀ, term by term as Eigen's rank updates of it
 // would (the same sums), unrolled over the slots each row can touch: those rank updates' loops
@@ -166,9 +123,7 @@ void add_weighted_outer(ParamMatrix& slots, const ParamVector& jx, double wx, co
 
 Sweep sweep(std::span<const WindowSample> w, const FitResult& fit,
             const std::array<bool, 6>& known) {
-  const Tempcos tc = fitted_tempcos(fit);
   const FreeMask free = fitted_slots(fit, known);
-  const double sensor_lag = fit.nuisance.sensor_lag.value;
   const double wx = 1.0 / (fit.noise_sigma[0] * fit.noise_sigma[0]);
   const double wt = 1.0 / (fit.noise_sigma[1] * fit.noise_sigma[1]);
   Sweep out;
@@ -177,25 +132,17 @@ Sweep sweep(std::span<const WindowSample> w, const FitResult& fit,
   out.stretches.reserve(out.switches.size());
   StretchSums sums(out.stretches);
   std::size_t next = 0;
-  double prev_tbar = fit.initial_state[2];
-  RepeatedExp lag_decay, thermal_decay;
+  PerturbationSteps steps(fit, Outputs::both);
   sweep_fitted_model(w, fit, [&](const FittedSample& f) {
     const std::size_t k = f.k;
     const ModelState& s = *f.state;
     if (k > 0) {
-      const double dt = w[k].t - w[k - 1].t;
-      const ThermalLinearization l = linearize_thermal(fit.theta, tc, prev_tbar, f.thermal_input);
-      const double lag = sensor_lag > 0.0 ? lag_decay(-dt / sensor_lag) : 0.0;
       const bool switch_row = next < out.switches.size() && out.switches[next].row == k;
-      if (switch_row) {
-        const double before = w[k - 1].voltage * w[k - 1].voltage;
-        const double after = w[k].voltage * w[k].voltage;
-        const double heat = l.b * (before - after) * dt;
-        out.switches[next++].start = {heat, heat * (1.0 - lag)};
-      }
-      sums.step(linear_step(thermal_decay(-l.a * dt), lag), switch_row);
+      sums.step(
+          steps.step(w, k, f.thermal_input, switch_row ? &out.switches[next++].start : nullptr),
+          switch_row);
     }
-    prev_tbar = s.tbar;
+    steps.passed(s);
     ParamVector jx = *f.jx, jt = *f.jt;
     for (int i = 0; i < kParams; ++i) {
       if (free[static_cast<std::size_t>(i)]) continue;
@@ -205,7 +152,7 @@ Sweep sweep(std::span<const WindowSample> w, const FitResult& fit,
     const double wrx = wx * (w[k].x - f.x_model), wrt = wt * (w[k].tbar - f.tbar_model);
     add_weighted_outer(out.slots, jx, wx, jt, wt);
     out.slots_score += wrx * jx + wrt * jt;
-    sums.add(static_x_gain(fit.theta, tc, s), wx, wt, jx, jt, wrx, wrt);
+    sums.add(wx, wt, jx, jt, wrx, wrt);
   });
   out.slots = out.slots.selfadjointView<Eigen::Upper>();
   if (out.stretches.size() == out.switches.size()) switch_columns(out);
@@ -239,14 +186,14 @@ class ProfiledNormal {
   // start_j·δ_j); backward, a_j = R_j·z_j + T_jᵀ·a_{j+1}, and (HᵀWHδ)_j = start_j·a_j.
   Eigen::VectorXd apply(const Eigen::VectorXd& delta) {
     const std::vector<Stretch>& st = s_.stretches;
-    Eigen::Vector2d z = Eigen::Vector2d::Zero();
+    Perturbation z = Perturbation::Zero();
     for (std::size_t j = 0; j < st.size(); ++j) {
       if (j > 0) z = st[j - 1].onward * z;
       z += s_.switches[j].start * delta[static_cast<Eigen::Index>(j)];
       entering_[j] = z;
     }
     Eigen::VectorXd out(delta.size());
-    Eigen::Vector2d a = Eigen::Vector2d::Zero();
+    Perturbation a = Perturbation::Zero();
     for (std::size_t j = st.size(); j-- > 0;) {
       a = st[j].quadratic * entering_[j] + st[j].onward.transpose() * a;
       out[static_cast<Eigen::Index>(j)] = s_.switches[j].start.dot(a);
@@ -267,7 +214,7 @@ class ProfiledNormal {
 
  private:
   const Sweep& s_;
-  std::vector<Eigen::Vector2d> entering_;
+  std::vector<Perturbation> entering_;
   ParamVector scale_ = ParamVector::Ones();
   Eigen::LDLT<ParamMatrix> solver_;
 };
@@ -322,15 +269,27 @@ bool prepare_placement(std::span<const WindowSample> prepared, const FitResult& 
   return true;
 }
 
-// Gauss–Newton's step for the phases with the slots profiled out, and the weighted cost it takes
-// off (bᵀδ); false where the step is not finite.
+// Gauss–Newton's step for the phases with the slots profiled out, each phase kept inside its
+// interval, and the weighted cost that step takes off in the linear model (2bᵀδ − δᵀMδ: bᵀδ where
+// no phase met its interval's end); false where the step is not finite. A switch the data put at
+// the edge of its interval would otherwise ask for a step it cannot take at every round, and the
+// rounds would not settle.
 bool phase_step(Placement& p, Eigen::VectorXd& delta, double& decrease) {
   const Sweep& s = p.sweep;
   // The score of the phases with the slots' own score profiled out (0 at a converged fit).
   const Eigen::VectorXd b = s.score - s.cross * p.op->slots_solve(s.slots_score);
   delta = conjugate_gradients(*p.op, b, p.diagonal);
-  decrease = b.dot(delta);
-  return delta.allFinite() && std::isfinite(decrease);
+  if (!delta.allFinite()) return false;
+  bool clamped = false;
+  for (std::size_t i = 0; i < s.switches.size(); ++i) {
+    const auto at = static_cast<Eigen::Index>(i);
+    const double phase = s.switches[i].phase;
+    const double inside = std::clamp(phase + delta[at], 0.0, 1.0) - phase;
+    clamped |= inside != delta[at];
+    delta[at] = inside;
+  }
+  decrease = clamped ? 2.0 * b.dot(delta) - delta.dot(p.op->apply(delta)) : b.dot(delta);
+  return std::isfinite(decrease);
 }
 
 // placed_switches_covariance's share from a placement's sweep.

@@ -11,8 +11,8 @@
 // Each switch's step is the thermal block's impulse response, the same for every δ, so the phases
 // are a linear least-squares problem on the residuals of a fitted model: the columns are the model
 // linearised about its trajectory (T̄'s decay at the local cooling and heating slopes, the
-// sensor's lag, x following T̄ at the mechanical block's static gain: its poles are milliseconds,
-// T̄'s seconds), weighted by the channels' noise. θ is not held: a shift of every switch together
+// sensor's lag, x following T̄ through the mechanical block linearised about its x, ẋ and T̄),
+// weighted by the channels' noise. θ is not held: a shift of every switch together
 // trades with θ1..θ4's common scale (a sub-millisecond lag between heating and motion), so the
 // step is Gauss–Newton's for the phases with the fit's free slots profiled out (the Schur
 // complement of their information, which one forward sweep of the fitted model's sensitivities
@@ -37,7 +37,8 @@ struct SwitchPlacement {
   std::size_t placed = 0;        // switch rows given a phase of their own (all, or none)
   double largest_move = 0.0;     // the largest change of a phase, in intervals
   double rms_phase_sigma = 0.0;  // the phases' RMS standard deviation, in intervals
-  // The weighted cost the step takes off (Gauss–Newton's prediction, bᵀδ) and what Schwarz's
+  // The weighted cost the step takes off (Gauss–Newton's prediction for the step with each phase
+  // kept inside its interval: bᵀδ where none met an end) and what Schwarz's
   // criterion charges the phases for it (ln n each): with FirstStep::needs_evidence, a step that
   // takes off less moves nothing (placed = 0): one phase for all switches fits as well.
   double decrease = 0.0;

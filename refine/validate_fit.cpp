@@ -2,6 +2,8 @@
 
 #include "refine/fitted_sweep.hpp"
 #include "refine/model_simulator.hpp"
+#include "refine/switch_columns.hpp"
+#include "refine/switch_placement.hpp"
 
 namespace scp::refine {
 
@@ -77,7 +79,8 @@ ValidationReport validate_fit(std::span<const WindowSample> window, const FitRes
     s.jacobian_tbar = std::span<const double>(f.jt->data(), kParams);
     validator.add(s);
   });
-  return validator.finish();
+  if (fit.voltage_switches.placed == 0) return validator.finish();
+  return validator.finish(placed_switch_columns(window, fit, validator.thermal_layout()));
 }
 
 }  // namespace scp::refine

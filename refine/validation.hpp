@@ -23,6 +23,7 @@
 #include <cstdint>
 #include <limits>
 #include <span>
+#include <vector>
 
 #include "estimator/types.hpp"
 #include "refine/block_means.hpp"
@@ -187,6 +188,14 @@ struct ModelTimeConstants {
 };
 ModelTimeConstants model_time_constants(const Vector6& theta, double tbar) noexcept;
 
+// The rows of one block's block means (BlockMeans::t0, block_s, indices): for columns a caller
+// computes at the same layout.
+struct BlockLayout {
+  double t0 = 0.0;
+  double block_s = 1.0;
+  std::vector<long> indices;
+};
+
 // The validation of one fit, fed sample by sample.
 class ResidualValidator {
  public:
@@ -196,7 +205,12 @@ class ResidualValidator {
   // A sample with a value that is not finite, or whose t is not after the previous one's, is left
   // out (counted in ValidationReport::skipped).
   void add(const ValidationSample& s) noexcept;
-  ValidationReport finish() const;
+  // `thermal_fitted`: block means (at thermal_layout()) of the sensitivities of more parameters
+  // the fit estimated than the samples carry (the placed voltage switches' phases,
+  // refine/switch_placement.hpp); with any, T̄'s whiteness test projects them and the fit's
+  // sensitivities off (Breusch–Godfrey) instead of Ljung–Box's.
+  ValidationReport finish(const Eigen::MatrixXd& thermal_fitted = Eigen::MatrixXd()) const;
+  BlockLayout thermal_layout() const;
 
  private:
   void advance_candidates(const ValidationSample& s, double dt) noexcept;

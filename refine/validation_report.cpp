@@ -22,7 +22,8 @@ struct Block {
   VectorXd counts;
   double block_s = 1.0;
   double time_constant = 0.0;
-  MatrixXd jacobian;  // block means of the fit's sensitivities, all-zero columns left out
+  MatrixXd jacobian;       // block means of the fit's sensitivities, all-zero columns left out
+  MatrixXd fitted_beyond;  // ResidualValidator::finish's thermal_fitted (thermal block)
 
   Block(const BlockMeans& store, double tau, int first_jacobian, const ValidationSettings& s)
       : means(store.means()), counts(store.counts()), block_s(store.block_s()), time_constant(tau) {
@@ -82,10 +83,20 @@ TestOutcome independence_test(const Block& b, int lags) {
                          false);
 }
 
+// Where the fit estimated parameters beyond the samples' sensitivities, on the recursive
+// residuals of the block means on all the fit's columns; else on the block means.
+VectorXd whiteness_series(const Block& b) {
+  if (b.fitted_beyond.cols() == 0)
+    return b.column(layout::kResidual).cwiseProduct(b.counts.cwiseSqrt());
+  MatrixXd x(b.rows(), b.jacobian.cols() + b.fitted_beyond.cols());
+  x << b.jacobian, b.fitted_beyond;
+  return recursive_residuals(b.column(layout::kResidual), x, b.counts);
+}
+
 TestOutcome whiteness_test(const Block& b, int lags) {
   TestOutcome o;
   // Scaled by √n: block means of unequal counts have unequal variances.
-  const VectorXd e = b.column(layout::kResidual).cwiseProduct(b.counts.cwiseSqrt());
+  const VectorXd e = whiteness_series(b);
   const PortmanteauResult q = ljung_box(e, lags);
   if (q.lags < 1) return o;
   o.performed = true;
@@ -167,14 +178,18 @@ void decide(ValidationReport& report, ValidationBlock which, double family) {
 
 }  // namespace
 
-ValidationReport ResidualValidator::finish() const {
+BlockLayout ResidualValidator::thermal_layout() const {
+  return {thermal_.t0(), thermal_.block_s(), thermal_.indices()};
+}
+
+ValidationReport ResidualValidator::finish(const MatrixXd& thermal_fitted) const {
   ValidationReport report;
   report.samples = samples_;
   report.skipped = skipped_;
   const Block mech(mechanical_, settings_.mechanical_time_constant_s, layout::kMechanicalJacobian,
                    settings_);
-  const Block therm(thermal_, settings_.thermal_time_constant_s, layout::kThermalJacobian,
-                    settings_);
+  Block therm(thermal_, settings_.thermal_time_constant_s, layout::kThermalJacobian, settings_);
+  if (thermal_fitted.rows() == therm.rows()) therm.fitted_beyond = thermal_fitted;
   // A disabled test is not run at all: the daemon's default fit estimates the displacement zero
   // and the ambient's offset and drift, whose regressions would be thrown away.
   auto run = [&](ValidationTest id, auto&& test) {

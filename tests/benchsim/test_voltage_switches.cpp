@@ -5,12 +5,15 @@
 // one of 12.3 ms bits whose switches fall anywhere in their intervals.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <span>
 #include <vector>
 
 #include "refine/fit.hpp"
+#include "refine/fitted_sweep.hpp"
+#include "refine/switch_columns.hpp"
 #include "refine/switch_placement.hpp"
 #include "refine/voltage_timing.hpp"
 #include "refine/warm_start.hpp"
@@ -260,6 +263,111 @@ TEST(VoltageSwitches, ASettledStepMovesNothingAndItsSweepGivesTheShare) {
               settled.decrease, moved.largest_move);
   EXPECT_FALSE(moved.settled);
   EXPECT_GT(moved.largest_move, 0.0);
+}
+
+// The phases' columns that T̄'s whiteness test projects off (placed_switch_columns) are what
+// moving each switch does to the block means of the fitted model's T̄ reading: against a
+// simulation of the model with one switch moved 1 % of its interval later, per unit of phase.
+TEST(VoltageSwitches, ThePhasesColumnsAreWhatMovingASwitchDoesToTheBlockMeans) {
+  const PlacedWindow p = placed_window();
+  ASSERT_TRUE(p.fit.converged) << p.fit.message;
+  const std::vector<refine::WindowSample>& prepared = p.prepared;
+  refine::BlockLayout layout;
+  layout.t0 = prepared.front().t;
+  layout.block_s = 0.625;
+  const auto blocks = static_cast<long>((prepared.back().t - layout.t0) / layout.block_s) + 1;
+  for (long i = 0; i < blocks; ++i) layout.indices.push_back(i);
+  const Eigen::MatrixXd columns = refine::placed_switch_columns(prepared, p.fit, layout);
+  const std::vector<refine::PlacedSwitch> switches = refine::placed_switches(prepared);
+  ASSERT_EQ(static_cast<std::size_t>(columns.cols()), switches.size());
+  ASSERT_EQ(columns.rows(), blocks);
+
+  const auto block_means = [&](std::span<const refine::WindowSample> w) {
+    Eigen::VectorXd sums = Eigen::VectorXd::Zero(blocks), counts = Eigen::VectorXd::Zero(blocks);
+    refine::sweep_fitted_model(w, p.fit, [&](const refine::FittedSample& f) {
+      const auto b = static_cast<Eigen::Index>((w[f.k].t - layout.t0) / layout.block_s);
+      sums[b] += f.tbar_model;
+      counts[b] += 1.0;
+    });
+    return Eigen::VectorXd(sums.cwiseQuotient(counts.cwiseMax(1.0)));
+  };
+  const Eigen::VectorXd base = block_means(prepared);
+  constexpr double kPhaseStep = 0.01;
+  double worst = 0.0;
+  for (std::size_t j : {std::size_t{3}, switches.size() / 2, switches.size() - 2}) {
+    std::vector<refine::WindowSample> moved = prepared;
+    std::size_t row = 1;
+    while (moved[row].t != switches[j].t) ++row;
+    moved[row].voltage_since += kPhaseStep * (moved[row].t - moved[row - 1].t);
+    const Eigen::VectorXd effect = (block_means(moved) - base) / kPhaseStep;
+    const Eigen::VectorXd column = columns.col(static_cast<Eigen::Index>(j));
+    const double error = (column - effect).norm() / effect.norm();
+    std::printf("switch %zu at %.3f s: |column| %.3g, |effect| %.3g, relative difference %.2g\n", j,
+                switches[j].t, column.norm(), effect.norm(), error);
+    worst = std::max(worst, error);
+  }
+  EXPECT_LT(worst, 1e-3);
+}
+
+// Each switch is placed where the generator put it (its bit edge on the generator's clock, read
+// on the DAQ's), within the phases' σ. rms_phase_sigma is each phase's σ given the others and θ
+// (1/√ of the profiled information's diagonal), which the correlation of neighbouring phases
+// makes smaller than the marginal one: 1.5× it measured, with x through the mechanical block's
+// dynamics or at its static gain alike (2.78e-3 and 2.84e-3 intervals on this window).
+TEST(VoltageSwitches, EachSwitchIsPlacedWhereTheGeneratorPutIt) {
+  const PlacedWindow p = placed_window();
+  ASSERT_TRUE(p.fit.converged) << p.fit.message;
+  const std::vector<refine::PlacedSwitch> placed = refine::placed_switches(p.prepared);
+  ASSERT_GT(placed.size(), 50u);
+  constexpr double kRate = 37e-6, kOffset = 3.1e-4, kBit = 1.0;
+  double sum = 0.0, squares = 0.0;
+  for (const refine::PlacedSwitch& s : placed) {
+    // The generator's edge nearest the row, at generator time n·bit.
+    const double edge = std::round((s.t * (1.0 + kRate) + kOffset) / kBit) * kBit;
+    const double truth = (edge - kOffset) / (1.0 + kRate);
+    const double error = (s.since - truth) / 1e-3;  // in intervals
+    sum += error;
+    squares += error * error;
+  }
+  const double n = static_cast<double>(placed.size());
+  const double mean = sum / n, rms = std::sqrt(squares / n);
+  const double sigma = p.fit.voltage_switches.rms_phase_sigma;
+  std::printf("%zu switches: error mean %.3g, rms %.3g intervals; the phases' sigma %.3g\n",
+              placed.size(), mean, rms, sigma);
+  EXPECT_LT(std::abs(mean), 3.0 * sigma / std::sqrt(n) + 0.5 * sigma);
+  EXPECT_LT(rms, 2.0 * sigma);
+}
+
+// A switch whose place the data put outside its interval (its row's V logged one row late) is
+// held at the interval's end, and the step the rounds judge is the one they can take: the
+// unconstrained step's decrease, which asked for that switch to leave its interval at every
+// round, kept the rounds from settling (4.47 at every round of the 300 s light-stiff window).
+TEST(VoltageSwitches, ASwitchHeldAtItsIntervalsEndLetsTheRoundsSettle) {
+  BenchFile f = test::light_stiff(120.0);
+  f.clock = {.rate_error = 37e-6, .offset_s = 3.1e-4};
+  apply_noise_level("N1", f.sim);
+  std::vector<refine::WindowSample> w = test::window_of(f);
+  std::size_t late = w.size() / 2;
+  while (std::abs(w[late].voltage - w[late - 1].voltage) < 0.5) ++late;
+  w[late].voltage = w[late - 1].voltage;  // the switch now shows one row later than it was
+  const refine::FitSettings settings = foh(refine::VoltageShape::smooth);
+  const refine::FitResult r = refine::fit(w, test::theta_of(f) * 1.1, settings);
+  ASSERT_TRUE(r.converged) << r.message;
+  ASSERT_GT(r.voltage_switches.placed, 0u);
+  std::vector<refine::WindowSample> storage;
+  const std::span<const refine::WindowSample> read =
+      refine::prepare_window(w, settings.voltage_hold, r.voltage_interval, storage,
+                             settings.voltage_shape, r.voltage_switches.phase);
+  std::vector<refine::WindowSample> prepared(read.begin(), read.end());
+  refine::restore_placed_switches(prepared, r.placed_switches);
+  const refine::WindowSample& row = prepared[late + 1];
+  std::printf("the late switch at %.3f s placed at phase %.3g of its interval\n", row.t,
+              (row.voltage_since - prepared[late].t) / (row.t - prepared[late].t));
+  EXPECT_EQ(row.voltage_since, prepared[late].t);  // held at its interval's start
+  const refine::SwitchPlacement next = refine::place_voltage_switches(
+      prepared, r, settings.known, refine::PlacementStep::follows, 1.0);
+  std::printf("the next step would take off %.3g\n", next.decrease);
+  EXPECT_TRUE(next.settled);
 }
 
 // θ's refit after a placement starts with the covariance's sums at the last fit's Newey–West lags

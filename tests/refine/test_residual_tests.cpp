@@ -3,6 +3,9 @@
 // whiteness tests' false-alarm rates and power over many random draws.
 #include <gtest/gtest.h>
 
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <Eigen/QR>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -260,6 +263,86 @@ TEST(LjungBox, FalseAlarmsAtTheLevelAndSeesColour) {
   EXPECT_NEAR(1.0 * white / draws, 0.05, 0.015);
   EXPECT_GT(1.0 * coloured / draws, 0.9);
   EXPECT_EQ(ljung_box(VectorXd::Ones(3), 5).lags, 0);  // too short for its lags
+}
+
+// Regressors of local reach, as the placed switches' phases are at the thermal block's layout: a
+// step decaying over `decay` rows from every `spacing`-th row, beside a constant.
+MatrixXd local_regressors(int m, int spacing, double decay) {
+  const int columns = m / spacing;
+  MatrixXd x = MatrixXd::Zero(m, columns + 1);
+  x.col(columns).setOnes();
+  for (int j = 0; j < columns; ++j)
+    for (int b = j * spacing; b < m; ++b) x(b, j) = std::exp(-(b - j * spacing) / decay);
+  return x;
+}
+
+struct SerialRates {
+  double ljung_box = 0.0, recursive = 0.0;
+};
+
+// Rejections at `level` of the residual of y = X·1 + AR(1) noise on local regressors.
+SerialRates serial_rejections(double rho, double level, int draws) {
+  const int m = 480, lags = 16;
+  const MatrixXd x = local_regressors(m, 3, 8.0);
+  const Eigen::ColPivHouseholderQR<MatrixXd> qr(x);
+  std::mt19937_64 rng(17);
+  SerialRates rates;
+  for (int i = 0; i < draws; ++i) {
+    const VectorXd y = x * VectorXd::Ones(x.cols()) + ar1_noise(m, rho, rng);
+    const VectorXd u = y - x * qr.solve(y);
+    rates.ljung_box += ljung_box(u, lags).p_value < level ? 1.0 : 0.0;
+    const VectorXd w = recursive_residuals(y, x, VectorXd::Ones(m));
+    EXPECT_EQ(w.size(), m - x.cols());
+    rates.recursive += ljung_box(w, lags).p_value < level ? 1.0 : 0.0;
+  }
+  rates.ljung_box /= draws;
+  rates.recursive /= draws;
+  return rates;
+}
+
+TEST(RecursiveResiduals, FalseAlarmsAtTheLevelWhereLocalRegressorsBiasLjungBox) {
+  // A third of the rows spent on regressors of local reach: the fit's residuals are negatively
+  // correlated at short lags, which Ljung–Box reads as colour; the recursive residuals are not.
+  const SerialRates white = serial_rejections(0.0, 0.05, 1000);
+  std::printf("white at 0.05: Ljung-Box on the residuals %.4f, on the recursive ones %.4f\n",
+              white.ljung_box, white.recursive);
+  EXPECT_GT(white.ljung_box, 0.5);
+  EXPECT_NEAR(white.recursive, 0.05, 0.02);
+}
+
+TEST(RecursiveResiduals, SeeColourBeyondTheRegressors) {
+  // Regressors of local reach explain much of a colour on their own time scale (AR(1) 0.8 about
+  // 3 rows per regressor, each decaying over 8): what they leave is what any test can see.
+  const SerialRates coloured = serial_rejections(0.8, 0.05, 200);
+  std::printf("AR(1) 0.8 at 0.05: Ljung-Box on the recursive residuals %.4f\n", coloured.recursive);
+  EXPECT_GT(coloured.recursive, 0.25);
+}
+
+TEST(RecursiveResiduals, AreThePredictionErrorsOfTheRowsBefore) {
+  // Row b's, by direct least squares on rows 0..b−1.
+  const int m = 12;
+  MatrixXd x(m, 2);
+  VectorXd y(m), weights(m);
+  for (int b = 0; b < m; ++b) {
+    x(b, 0) = 1.0;
+    x(b, 1) = std::sin(0.7 * b);
+    y[b] = std::cos(1.3 * b) + 0.1 * b;
+    weights[b] = 1.0 + (b % 3);
+  }
+  const VectorXd w = recursive_residuals(y, x, weights);
+  ASSERT_EQ(w.size(), m - 2);
+  const VectorXd root = weights.cwiseSqrt();
+  const MatrixXd xw = root.asDiagonal() * x;
+  const VectorXd yw = root.asDiagonal() * y;
+  for (int b = 2; b < m; ++b) {
+    const MatrixXd before = xw.topRows(b);
+    const Eigen::Matrix2d info = before.transpose() * before;
+    const Eigen::Vector2d beta = info.ldlt().solve(before.transpose() * yw.head(b));
+    const Eigen::RowVector2d row = xw.row(b);
+    const double expected =
+        (yw[b] - row.dot(beta)) / std::sqrt(1.0 + row * info.inverse() * row.transpose());
+    EXPECT_NEAR(std::abs(w[b - 2]), std::abs(expected), 1e-12) << b;
+  }
 }
 
 }  // namespace
