@@ -83,8 +83,9 @@ TestOutcome independence_test(const Block& b, int lags) {
                          false);
 }
 
-// Where the fit estimated parameters beyond the samples' sensitivities, on the recursive
-// residuals of the block means on all the fit's columns; else on the block means.
+// Where the fit estimated parameters beyond the samples' sensitivities, the recursive residuals
+// of the block means on all the fit's columns; else the block means, scaled by √n (block means
+// of unequal counts have unequal variances; the recursive residuals are weighted so).
 VectorXd whiteness_series(const Block& b) {
   if (b.fitted_beyond.cols() == 0)
     return b.column(layout::kResidual).cwiseProduct(b.counts.cwiseSqrt());
@@ -95,7 +96,6 @@ VectorXd whiteness_series(const Block& b) {
 
 TestOutcome whiteness_test(const Block& b, int lags) {
   TestOutcome o;
-  // Scaled by √n: block means of unequal counts have unequal variances.
   const VectorXd e = whiteness_series(b);
   const PortmanteauResult q = ljung_box(e, lags);
   if (q.lags < 1) return o;
