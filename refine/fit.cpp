@@ -96,12 +96,10 @@ StopReason verdict(const FitContext& ctx, const FitState& state,
   return StopReason::none;
 }
 
-void conclude(FitContext& ctx, const FitState& state, StopReason stop, FitResult& result) {
-  take_progress(ctx, state, result);
-  if (stop != StopReason::none) {
-    ended(result, stop);
-    return;
-  }
+namespace {
+
+// conclude()'s end, once every stage ran.
+void conclude_with_covariance(FitContext& ctx, const FitState& state, FitResult& result) {
   const CovarianceOutcome covariance = estimate_covariance(ctx, state, result);
   if (covariance.stop != StopReason::none) {
     take_progress(ctx, state, result);
@@ -111,6 +109,38 @@ void conclude(FitContext& ctx, const FitState& state, StopReason stop, FitResult
   result.stop = verdict(ctx, state, covariance);
   result.converged = state.joint.converged && result.stop == StopReason::none;
   result.message = result.stop == StopReason::none ? state.joint.message : to_text(result.stop);
+}
+
+// conclude() but for the covariance's pass, which waits in `pending`: the verdict on the T̄ the
+// solution's pass saw, whose definiteness the covariance will judge.
+void conclude_but_covariance(FitContext& ctx, const FitState& state, FitResult& result,
+                             std::optional<PendingCovariance>& pending) {
+  take_progress(ctx, state, result);
+  publish_solution_pass(ctx, state, result);
+  CovarianceOutcome seen;
+  seen.definite = true;
+  seen.model_range = {state.joint.pass.tbar_min, state.joint.pass.tbar_max};
+  result.stop = verdict(ctx, state, seen);
+  result.converged = state.joint.converged && result.stop == StopReason::none;
+  result.message = result.stop == StopReason::none ? state.joint.message : to_text(result.stop);
+  pending = PendingCovariance{ctx, state};
+}
+
+}  // namespace
+
+void conclude(FitContext& ctx, const FitState& state, StopReason stop, FitResult& result) {
+  take_progress(ctx, state, result);
+  if (stop != StopReason::none) {
+    ended(result, stop);
+    return;
+  }
+  conclude_with_covariance(ctx, state, result);
+}
+
+void conclude_deferred(PendingCovariance& pending, FitResult& result) {
+  const int iterations = result.iterations;  // with the retried shapes' (fit_staged)
+  conclude_with_covariance(pending.ctx, pending.state, result);
+  result.iterations = iterations;
 }
 
 namespace {
@@ -138,21 +168,27 @@ FitResult fresh_result(std::span<const WindowSample> window, const Vector6& thet
   return result;
 }
 
-// The stages after the thermal ones, and the verdict.
-void fit_mechanics(FitContext& ctx, FitState& state, bool default_shape, FitResult& result) {
+// The stages after the thermal ones, and the verdict; with `pending`, the covariance waits there
+// where every stage ran.
+void fit_mechanics(FitContext& ctx, FitState& state, bool default_shape, FitResult& result,
+                   std::optional<PendingCovariance>* pending) {
   if (default_shape) start_displacement_zero(ctx.window, ctx.settings, state.p);
   start_with_positive_damping(ctx, state);
   StopReason stop = StopReason::none;
   if (ctx.settings.search_scale) stop = search_scale(ctx, state);
   if (stop == StopReason::none) stop = fit_mechanical(ctx, state);
   if (stop == StopReason::none) stop = fit_joint(ctx, state);
-  conclude(ctx, state, stop, result);
+  if (pending != nullptr) pending->reset();
+  if (pending != nullptr && stop == StopReason::none) {
+    conclude_but_covariance(ctx, state, result, *pending);
+  } else {
+    conclude(ctx, state, stop, result);
+  }
 }
 
-}  // namespace
-
-FitResult fit_staged(std::span<const WindowSample> window, const Vector6& theta_start,
-                     const FitSettings& settings) {
+FitResult fit_staged_with(std::span<const WindowSample> window, const Vector6& theta_start,
+                          const FitSettings& settings, std::optional<PendingCovariance>* pending) {
+  if (pending != nullptr) pending->reset();
   FitResult result = fresh_result(window, theta_start);
   FitState state;
   state.p = start_point(window, theta_start, settings.known);
@@ -170,7 +206,7 @@ FitResult fit_staged(std::span<const WindowSample> window, const Vector6& theta_
   const bool default_shape = !usable_mechanical_start(theta_start);
   const FitState thermal_state = state;
   FitContext attempt_ctx = ctx;
-  fit_mechanics(attempt_ctx, state, default_shape, result);
+  fit_mechanics(attempt_ctx, state, default_shape, result, pending);
   for (const MechanicalShape& shape : kRetryShapes) {
     if (!default_shape || result.converged || out_of_budget(result.stop)) break;
     FitContext retry_ctx = ctx;
@@ -179,12 +215,25 @@ FitResult fit_staged(std::span<const WindowSample> window, const Vector6& theta_
     FitState retry = thermal_state;
     start_mechanical_shape(window, shape, settings.known, retry.p);
     FitResult attempt = fresh_result(window, theta_start);
-    fit_mechanics(retry_ctx, retry, true, attempt);
+    fit_mechanics(retry_ctx, retry, true, attempt, pending);
     attempt.iterations += result.iterations - thermal_state.iterations;
     result = attempt;
     attempt_ctx = retry_ctx;
   }
   return result;
+}
+
+}  // namespace
+
+FitResult fit_staged(std::span<const WindowSample> window, const Vector6& theta_start,
+                     const FitSettings& settings) {
+  return fit_staged_with(window, theta_start, settings, nullptr);
+}
+
+FitResult fit_staged_deferring_covariance(std::span<const WindowSample> prepared,
+                                          const Vector6& theta_start, const FitSettings& settings,
+                                          std::optional<PendingCovariance>& pending) {
+  return fit_staged_with(prepared, theta_start, settings, &pending);
 }
 
 namespace {
@@ -235,11 +284,13 @@ struct PlacedFit {
 };
 
 // The rounds of placement from `fitted`, each followed by θ's refit of the same model; what the
-// replaced fits cost is added to `cost`.
+// replaced or discarded fits cost is added to `cost`. `pending`: where `fitted`'s covariance waits,
+// concluded where no refit replaced it.
 PlacedFit placement_rounds(std::span<WindowSample> prepared, const FitSettings& settings,
                            const FitSettings& refit, FitResult fitted, PlacementStep first,
-                           FitCost& cost) {
+                           FitCost& cost, PendingCovariance* pending) {
   PlacedFit out;
+  bool replaced = false;
   for (int round = 0; round < kPlacementRounds && fitted.validated; ++round) {
     const SwitchPlacement placed =
         place_voltage_switches(prepared, fitted, settings.known,
@@ -251,12 +302,17 @@ PlacedFit placement_rounds(std::span<WindowSample> prepared, const FitSettings& 
       out.covariance_share = placed.covariance_share;
       break;
     }
-    cost.add(fitted);
     FitResult next = refit_same_window(prepared, fitted, refit);
-    if (!next.validated) break;  // the fit of the last phases that ran to its verdict stands
+    if (!next.validated) {  // the fit of the last phases that ran to its verdict stands
+      cost.add(next);
+      break;
+    }
+    cost.add(fitted);
     next.voltage_switches = fitted.voltage_switches;
     fitted = std::move(next);
+    replaced = true;
   }
+  if (!replaced && pending != nullptr) conclude_deferred(*pending, fitted);
   out.fit = std::move(fitted);
   return out;
 }
@@ -264,11 +320,13 @@ PlacedFit placement_rounds(std::span<WindowSample> prepared, const FitSettings& 
 }  // namespace
 
 FitResult fit_with_placed_switches(std::span<WindowSample> prepared, const FitSettings& settings,
-                                   FitResult fitted, PlacementStep first) {
+                                   FitResult fitted, PlacementStep first,
+                                   PendingCovariance* pending) {
   FitSettings refit = settings;
   refit.search_scale = false;  // θ1..θ4's common scale is the fitted one's
   FitCost cost;
-  PlacedFit placed = placement_rounds(prepared, settings, refit, std::move(fitted), first, cost);
+  PlacedFit placed =
+      placement_rounds(prepared, settings, refit, std::move(fitted), first, cost, pending);
   fitted = std::move(placed.fit);
   // The rounds kept the model of the fit at one phase (with `auto`, fit_placing_switches's
   // extended one); `auto` chooses at the placed phases, where a switch's misplaced heat no
@@ -283,7 +341,7 @@ FitResult fit_with_placed_switches(std::span<WindowSample> prepared, const FitSe
       placed = {std::move(next), std::nullopt};
       if (changed)
         placed = placement_rounds(prepared, settings, refit, std::move(placed.fit),
-                                  PlacementStep::follows, cost);
+                                  PlacementStep::follows, cost, nullptr);
       fitted = std::move(placed.fit);
     } else {
       cost.add(next);
@@ -320,11 +378,14 @@ namespace {
 FitResult fit_placing_switches(std::span<WindowSample> prepared, const Vector6& theta_start,
                                const FitSettings& settings, const SwitchPhase& switches) {
   const bool automatic = has_automatic(settings.extensions);
-  FitResult result = automatic ? fit_extended(prepared, theta_start, settings)
-                               : fit_staged(prepared, theta_start, settings);
+  // The fit at one phase is replaced where the switches are placed: its covariance waits.
+  std::optional<PendingCovariance> pending;
+  FitResult result =
+      automatic ? fit_extended(prepared, theta_start, settings)
+                : fit_staged_deferring_covariance(prepared, theta_start, settings, pending);
   result.voltage_switches = switches;
   result = fit_with_placed_switches(prepared, settings, std::move(result),
-                                    PlacementStep::needs_evidence);
+                                    PlacementStep::needs_evidence, pending ? &*pending : nullptr);
   if (automatic && result.voltage_switches.placed == 0 && is_extended(result, settings)) {
     result = eliminate_extensions(prepared, std::move(result), settings, ExtensionWeighing::bic);
     result.voltage_switches = switches;

@@ -3,6 +3,7 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "refine/stages.hpp"
 
@@ -82,10 +83,17 @@ StopReason fit_joint(FitContext& ctx, FitState& state) {
   const bool timing = ctx.settings.sample_timing_jitter;
   // With the timing variance to estimate too, more rounds: it starts from 0.
   const int rounds = timing ? 8 : 4;
+  // The last round's pass at its solution, at the weights of the variances it re-estimated: the
+  // next round's start, whose pass would sum the same (the one-step rule's accepted start mixes
+  // two passes and is not reused).
+  std::optional<PassResult> start;
+  const bool reuse_start = !(ctx.joint_options.one_step_tolerance > 0.0);
   for (int round = 0; round < rounds; ++round) {
-    state.joint =
-        run_stage(ctx.window, Coordinates(free, state.p), joint_pass_settings(ctx.settings, state),
-                  ctx.max_iterations, ctx.budget, state.range, ctx.joint_options);
+    StageOptions options = ctx.joint_options;
+    options.start_pass = start ? &*start : nullptr;
+    const PassSettings ps = joint_pass_settings(ctx.settings, state);
+    state.joint = run_stage(ctx.window, Coordinates(free, state.p), ps, ctx.max_iterations,
+                            ctx.budget, state.range, options);
     state.iterations += state.joint.iterations;
     if (state.joint.pass.finite) state.p = state.joint.p;
     if (state.joint.stopped) return ctx.budget.stop();
@@ -94,6 +102,9 @@ StopReason fit_joint(FitContext& ctx, FitState& state) {
                              ? rescore_variances(ctx, state.joint.pass, state.noise)
                              : reestimate_variances(ctx, state.joint.pass, parameters, state.noise);
     if (settled) break;
+    if (reuse_start)
+      start =
+          reweighted(state.joint.pass, ps.weight, joint_pass_settings(ctx.settings, state).weight);
   }
   state.sample_timing_sigma_s = std::sqrt(state.noise.timing);
   if (!state.joint.pass.finite || !state.p.allFinite()) return StopReason::model_not_finite;

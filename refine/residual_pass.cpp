@@ -23,19 +23,20 @@ using namespace outer_update;
 
 // x's and T̄'s rows of one sample into JᵀWJ's upper triangle, over the slots they can touch
 // (x never sees the sensor's lag).
-inline void add_rows(ParamMatrix& h, const ParamVector& jx, double wx, const ParamVector& jt,
-                     double wt, const PassSettings& settings) noexcept {
+// `hx` and `ht` may be one matrix.
+inline void add_rows(ParamMatrix& hx, ParamMatrix& ht, const ParamVector& jx, double wx,
+                     const ParamVector& jt, double wt, const PassSettings& settings) noexcept {
   if (settings.extensions) {
-    if (wx != 0.0) add_outer_upper<kXRowSlotsExtended>(h, jx, wx);
-    if (wt != 0.0) add_outer_upper<kTbarRowSlotsExtended>(h, jt, wt);
+    if (wx != 0.0) add_outer_upper<kXRowSlotsExtended>(hx, jx, wx);
+    if (wt != 0.0) add_outer_upper<kTbarRowSlotsExtended>(ht, jt, wt);
     return;
   }
-  if (wx != 0.0) add_outer_upper<kXRowSlots>(h, jx, wx);
+  if (wx != 0.0) add_outer_upper<kXRowSlots>(hx, jx, wx);
   if (wt == 0.0) return;
   if (settings.sensor_lag) {
-    add_outer_upper<kTbarRowSlotsLagged>(h, jt, wt);
+    add_outer_upper<kTbarRowSlotsLagged>(ht, jt, wt);
   } else {
-    add_outer_upper<kTbarRowSlots>(h, jt, wt);
+    add_outer_upper<kTbarRowSlots>(ht, jt, wt);
   }
 }
 
@@ -352,7 +353,7 @@ WeightedSample add_timing_weighted(const PassSettings& settings, double wx, doub
   const double omega = outlier_weight(settings.outlier_threshold, ref.x_residual(sample, settings),
                                       ref.tbar_residual(sample, settings, t0), w_xx, w_xt, w_tt);
   if (omega < 1.0) ++r.outliers;
-  add_rows(r.jtwj, jx, omega * w_xx, jt, omega * w_tt, settings);
+  add_rows(r.jtwj, r.jtwj, jx, omega * w_xx, jt, omega * w_tt, settings);
   if (w_xt != 0.0) r.jtwj.selfadjointView<Eigen::Upper>().rankUpdate(jx, jt, omega * w_xt);
   const Eigen::Vector2d e = w * Eigen::Vector2d(rx, rt);  // W r
   WeightedSample out;
@@ -417,6 +418,7 @@ bool jacobian_pass(std::span<const WindowSample> window, const ParamVector& p,
   SensorLag lag(p[kSensorLagSlot]);
   const bool lagged = p[kSensorLagSlot] != 0.0 || settings.sensor_lag;
   lag.start(sim.state().tbar, &sim.dtbar());
+  ChannelSums channels;  // without the timing weights, each channel's share apart
   double rx = 0.0, rt = 0.0;
   bool stopped = false;
   for (std::size_t k = 0; k < window.size(); ++k) {
@@ -438,13 +440,17 @@ bool jacobian_pass(std::span<const WindowSample> window, const ParamVector& p,
       feed_validator(*settings.validator, window, k, sim, jx, jt, rx, rt, settings.input_delay);
     if (k == next_batch) [[unlikely]] {
       // sums.add has counted sample k's wx·rx² + wt·rt² already.
-      batch_score = batch_sums.begin_batch(k, r.jtwj, r.cost - (wx * rx * rx + wt * rt * rt));
+      const ParamMatrix so_far = timing ? r.jtwj : (channels.jtwj[0] + channels.jtwj[1]).eval();
+      batch_score = batch_sums.begin_batch(k, so_far, r.cost - (wx * rx * rx + wt * rt * rt));
       next_batch = batch_sums.next_start();
     }
     WeightedSample sample;
     if (!timing) {
-      add_rows(r.jtwj, jx, wx, jt, wt, settings);
-      sample.score = wx * rx * jx + wt * rt * jt;
+      add_rows(channels.jtwj[0], channels.jtwj[1], jx, wx, jt, wt, settings);
+      const ParamVector sx = wx * rx * jx, st = wt * rt * jt;
+      channels.jtwr[0] += sx;
+      channels.jtwr[1] += st;
+      sample.score = sx + st;
     } else {
       sample = add_timing_weighted(settings, wx, wt, ref, window[k], sums.t0, rx, rt, jx, jt, r);
     }
@@ -453,6 +459,11 @@ bool jacobian_pass(std::span<const WindowSample> window, const ParamVector& p,
     r.jtwr += sample.score;
     if (hac) hac->add(sample.score);
     if (batch_score != nullptr) *batch_score += sample.score;
+  }
+  if (!timing) {
+    for (ParamMatrix& h : channels.jtwj) h = h.selfadjointView<Eigen::Upper>();
+    r.jtwj = channels.jtwj[0] + channels.jtwj[1];
+    r.channels = channels;
   }
   batch_sums.finish(r.jtwj, r.cost);
   batch_sums.move_into(r);
@@ -476,6 +487,36 @@ PassResult residual_pass(std::span<const WindowSample> window, const ParamVector
                                          : cost_only_pass(window, p, settings, sums);
   r.finite = !stopped && std::isfinite(r.cost) && r.jtwj.allFinite() && r.jtwr.allFinite();
   return r;
+}
+
+std::optional<PassResult> reweighted(const PassResult& pass, const std::array<double, 2>& from,
+                                     const std::array<double, 2>& to) {
+  if (!pass.finite || !pass.channels) return std::nullopt;
+  PassResult out;
+  out.finite = true;
+  out.rss = pass.rss;
+  out.lag1 = pass.lag1;
+  out.tbar_min = pass.tbar_min;
+  out.tbar_max = pass.tbar_max;
+  out.substeps = pass.substeps;
+  ChannelSums channels;
+  for (std::size_t c = 0; c < 2; ++c) {
+    if (from[c] == 0.0) {
+      // A channel the pass left out cannot be weighted in.
+      if (to[c] != 0.0) return std::nullopt;
+      continue;
+    }
+    const double scale = to[c] / from[c];
+    channels.jtwj[c] = scale * pass.channels->jtwj[c];
+    channels.jtwr[c] = scale * pass.channels->jtwr[c];
+    out.cost += to[c] * pass.rss[c];
+  }
+  out.jtwj = channels.jtwj[0] + channels.jtwj[1];
+  out.jtwr = channels.jtwr[0] + channels.jtwr[1];
+  out.channels = channels;
+  if (!std::isfinite(out.cost) || !out.jtwj.allFinite() || !out.jtwr.allFinite())
+    return std::nullopt;
+  return out;
 }
 
 }  // namespace scp::refine

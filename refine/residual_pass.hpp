@@ -6,6 +6,7 @@
 
 #include <array>
 #include <atomic>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -77,6 +78,12 @@ struct PassSettings {
 // Samples between two polls of PassSettings::cancel: ~1 ms of simulation.
 inline constexpr std::size_t kCancelStride = 1024;
 
+// JᵀWJ and JᵀWr of x's rows ([0]) and of T̄'s ([1]), whose sums are PassResult's jtwj and jtwr.
+struct ChannelSums {
+  std::array<ParamMatrix, 2> jtwj{ParamMatrix::Zero(), ParamMatrix::Zero()};
+  std::array<ParamVector, 2> jtwr{ParamVector::Zero(), ParamVector::Zero()};
+};
+
 struct PassResult {
   bool finite = false;
   double cost = 0.0;  // Σ_k Σ_c w_c r_ck², r = measured − model
@@ -103,9 +110,19 @@ struct PassResult {
   Eigen::Matrix3d variance_information = Eigen::Matrix3d::Zero();
   std::array<double, 2> speed_squares{};  // Σ gx², Σ gT̄² (the timing error's share per channel)
   std::size_t outliers = 0;  // with PassSettings::outlier_threshold: samples down-weighted
+  // Jacobian passes without the timing weights, whose weight matrix is diagonal: each channel's
+  // share, from which the pass at other channel weights follows (reweighted()).
+  std::optional<ChannelSums> channels;
 };
 
 PassResult residual_pass(std::span<const WindowSample> window, const ParamVector& p,
                          const PassSettings& settings);
+
+// The pass at the same p with each channel weighted to[c] instead of from[c] (PassSettings::
+// weight): its cost, JᵀWJ and JᵀWr, what a new pass would sum up to rounding. Without the long-run
+// and batch sums; nothing where the pass did not keep its channels apart or left out a channel
+// `to` weights.
+std::optional<PassResult> reweighted(const PassResult& pass, const std::array<double, 2>& from,
+                                     const std::array<double, 2>& to);
 
 }  // namespace scp::refine

@@ -14,13 +14,15 @@ namespace {
 
 // Newey–West's lags: the caller's (at most a quarter of the window, which would leave too few
 // batches to average), or the automatic choice from the joint pass's lag-one correlations.
-int newey_west_lags(const FitContext& ctx, const PassResult& joint) {
-  const std::size_t n = ctx.window.size();
+int newey_west_lags(std::size_t n, int asked, const PassResult& joint) {
   const double rho_x = joint.rss[0] > 0.0 ? joint.lag1[0] / joint.rss[0] : 0.0;
   const double rho_t = joint.rss[1] > 0.0 ? joint.lag1[1] / joint.rss[1] : 0.0;
   const int max_lags = static_cast<int>(std::max<std::size_t>(1, n / 4));
-  return ctx.settings.hac_lags > 0 ? std::min(ctx.settings.hac_lags, max_lags)
-                                   : automatic_hac_lags(n, std::max(rho_x, rho_t));
+  return asked > 0 ? std::min(asked, max_lags) : automatic_hac_lags(n, std::max(rho_x, rho_t));
+}
+
+int newey_west_lags(const FitContext& ctx, const PassResult& joint) {
+  return newey_west_lags(ctx.window.size(), ctx.settings.hac_lags, joint);
 }
 
 // What σ_d does to θ: the Gauss–Newton step from the solution to the fit at d̂ + σ_d (one pass),
@@ -75,6 +77,9 @@ TrialCovariance covariance_sums(const FitContext& ctx, int lags) {
   TrialCovariance sums;
   sums.hac_bandwidth = lags + 1;
   sums.batches = ctx.settings.covariance_batches;
+  sums.lags_of = [n = ctx.window.size(), asked = ctx.settings.hac_lags](const PassResult& pass) {
+    return newey_west_lags(n, asked, pass);
+  };
   const FreeMask free = fit_slots(ctx.settings);
   ValidationSettings vs;
   vs.declared_noise = ctx.settings.declared_noise;
@@ -85,6 +90,13 @@ TrialCovariance covariance_sums(const FitContext& ctx, int lags) {
         theta, validation_settings(window, theta, free, vs, ambient));
   };
   return sums;
+}
+
+void publish_solution_pass(const FitContext& ctx, const FitState& state, FitResult& result) {
+  const PassResult& pass = state.joint.pass;
+  result.hac_lags = newey_west_lags(ctx, pass);
+  result.validated = pass.finite;
+  if (pass.finite) publish_residuals(ctx, state, pass, result);
 }
 
 CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, FitResult& result) {

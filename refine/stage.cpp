@@ -135,16 +135,25 @@ StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c
       {pass_settings.thermal_only ? 0.0 : pass_settings.weight[0], pass_settings.weight[1]});
   const Eigen::MatrixXd t = c.jacobian();
   const bool one_step = options.one_step_tolerance > 0.0 && options.trial_covariance != nullptr;
+  const TrialCovariance* sums = options.trial_covariance;
   bool first = true;
   auto evaluate = [&](const Eigen::VectorXd& z) {
     Evaluation e;
+    const bool start = std::exchange(first, false);
     // The start's pass carries the sums too where the one-step rule may end the stage there.
-    const bool with_sums = !std::exchange(first, false) || one_step;
+    const bool with_sums = !start || one_step;
     // p holds every entry of z: a non-finite step is a failed step, never a simulation.
     const ParamVector p = c.to_p(z);
     if (refused_before_pass(p, pass_settings.thermal_only, budget, range, e)) return e;
-    e.pass = stage_pass(window, p, pass_settings, with_sums ? options.trial_covariance : nullptr,
-                        budget, e.validator);
+    if (start && !one_step && options.start_pass != nullptr) {
+      e.pass = *options.start_pass;
+    } else {
+      e.pass =
+          stage_pass(window, p, pass_settings, with_sums ? sums : nullptr, budget, e.validator);
+    }
+    if (start && sums != nullptr && sums->only_at_own_lags && sums->lags_of && e.pass.finite &&
+        sums->lags_of(e.pass) + 1 != sums->hac_bandwidth)
+      sums = nullptr;
     // An unstable model (negative damping at some T̄ of the window, θ3 or θ5 ≤ 0) counts as not
     // finite: the solver backs off instead of following a diverging simulation.
     e.finite = e.pass.finite && std::isfinite(e.pass.cost) &&

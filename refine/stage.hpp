@@ -81,7 +81,12 @@ struct TrialCovariance {
   // The sums serve the covariance only where the solution's residuals choose hac_bandwidth's lags
   // too (a refit after its samples changed, whose start's lags were another model's); otherwise
   // at hac_bandwidth's whatever they choose (a warm refit: the slid window's lags, one or two off).
+  // Where the start's residuals already choose others (a refit after the voltage's switches were
+  // placed, whose start's lags came from residuals the misplaced switches coloured), no trial
+  // carries them: each would be a dearer pass whose sums no one reads.
   bool only_at_own_lags = false;
+  // The Newey–West lags a pass's residuals choose (estimate_covariance's rule).
+  std::function<int(const PassResult&)> lags_of;
 };
 
 // How a stage runs its Levenberg–Marquardt (LmSettings's members of the same names).
@@ -92,6 +97,10 @@ struct StageOptions {
   // > 0 (with trial_covariance): the one-step rule (LmSettings::one_step_tolerance), the start's
   // pass then also carrying the covariance's sums.
   double one_step_tolerance = 0.0;
+  // Non-null (without the one-step rule): the pass at the stage's start, already at hand (the
+  // joint stage's previous round at the new noise weights, refine/residual_pass.hpp's
+  // reweighted()), which the first evaluation takes instead of simulating.
+  const PassResult* start_pass = nullptr;
 };
 
 struct StageResult {

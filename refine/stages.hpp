@@ -5,6 +5,7 @@
 // have files of their own (refine/input_delay.hpp, refine/scale_search.hpp).
 
 #include <array>
+#include <optional>
 #include <span>
 
 #include "refine/fit_state.hpp"
@@ -19,8 +20,13 @@ namespace scp::refine {
 // than 1 off the weighted cost; `first`: whether the first step needs evidence (Schwarz's
 // criterion) or follows phases placed before. θ's covariance gains the phases' share, and the
 // result the placed switches (FitResult::placed_switches).
+struct PendingCovariance;
+
+// `pending`: where `fitted`'s covariance waits (fit_staged_deferring_covariance), concluded if
+// `fitted` stands.
 FitResult fit_with_placed_switches(std::span<WindowSample> prepared, const FitSettings& settings,
-                                   FitResult fitted, PlacementStep first);
+                                   FitResult fitted, PlacementStep first,
+                                   PendingCovariance* pending = nullptr);
 
 // Whether the fit places the switches of a window read with `settings` that has `switches`.
 bool places_switches(const FitSettings& settings, const SwitchPhase& switches);
@@ -118,6 +124,10 @@ struct CovarianceOutcome {
   TbarRange model_range;               // the model's T̄ over the window at the solution
 };
 CovarianceOutcome estimate_covariance(FitContext& ctx, const FitState& state, FitResult& result);
+// What estimate_covariance publishes that the joint stage's last pass at the solution already
+// gives (residual_rms, noise_sigma, hac_lags, `validated` where it was finite): for a fit whose
+// covariance waits.
+void publish_solution_pass(const FitContext& ctx, const FitState& state, FitResult& result);
 // What estimate_covariance's pass carries with Newey–West `lags`, for a stage's trial passes to
 // carry too (StageOptions::trial_covariance): the pass a warm refit's joint stage ends on then
 // serves as the covariance's.
@@ -133,6 +143,27 @@ StopReason verdict(const FitContext& ctx, const FitState& state,
 // (refine/voltage_timing.hpp), with the extensions as `settings` asks (`auto` taken as `on`).
 FitResult fit_staged(std::span<const WindowSample> prepared, const Vector6& theta_start,
                      const FitSettings& settings);
+
+// A fit whose covariance waits (fit_staged_deferring_covariance): its context and solution, which
+// conclude_deferred finishes as conclude() would have.
+struct PendingCovariance {
+  FitContext ctx;
+  FitState state;
+};
+
+// fit_staged for a fit the switches' placement will probably replace: where every stage ran, the
+// result carries what the placement and a refit read (θ, the noise σ, Newey–West's lags,
+// `validated` where the solution's pass was finite, the verdict but for the covariance's
+// definiteness) and its covariance's pass waits in `pending`; elsewhere as fit_staged, `pending`
+// empty. A covariance the conclusion then finds singular ends the fit there: the shapes fit_staged
+// retries after a fit that did not converge are not tried for it.
+FitResult fit_staged_deferring_covariance(std::span<const WindowSample> prepared,
+                                          const Vector6& theta_start, const FitSettings& settings,
+                                          std::optional<PendingCovariance>& pending);
+
+// The covariance and the verdict of a fit whose covariance waited, into `result` (which keeps its
+// iterations).
+void conclude_deferred(PendingCovariance& pending, FitResult& result);
 
 // FitSettings::extensions with an `auto`: the model with every extension not `off` fitted by the
 // stages, then each `auto` one dropped in turn (the joint stage from that solution with it held

@@ -7,10 +7,12 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <optional>
 #include <random>
 #include <vector>
 
 #include "refine/covariance.hpp"
+#include "refine/residual_pass.hpp"
 #include "refine/stages.hpp"
 #include "tests/refine/record.hpp"
 
@@ -274,6 +276,61 @@ TEST(JointStage, EstimatesTheSamplesTimingJitter) {
   std::printf("joint stage with jitter: %.2f us\n", state.sample_timing_sigma_s * 1e6);
   EXPECT_TRUE(state.noise.timing_estimated);
   EXPECT_NEAR(state.sample_timing_sigma_s, kJitter, 0.1 * kJitter);
+}
+
+// A pass's channels reweighted are the pass at the new weights: what the joint stage's next round
+// starts from instead of simulating it again.
+TEST(ResidualPass, ReweightedIsThePassAtTheOtherWeights) {
+  const auto w = test::paper_record(20.0, {.x = 1e-7, .tbar = 1e-3, .seed = 6});
+  const ParamVector p =
+      param_vector(test::theta_of(test::paper_actuator()) * 1.03, Eigen::Vector3d::Zero());
+  PassSettings from;
+  from.weight = {1e12, 1e6};
+  PassSettings to = from;
+  to.weight = {3.7e13, 2.2e5};
+  const PassResult pass = residual_pass(w, p, from);
+  ASSERT_TRUE(pass.channels.has_value());
+  const std::optional<PassResult> moved = reweighted(pass, from.weight, to.weight);
+  ASSERT_TRUE(moved.has_value());
+  const PassResult fresh = residual_pass(w, p, to);
+  EXPECT_NEAR(moved->cost, fresh.cost, 1e-12 * fresh.cost);
+  EXPECT_LT((moved->jtwj - fresh.jtwj).norm(), 1e-12 * fresh.jtwj.norm());
+  EXPECT_LT((moved->jtwr - fresh.jtwr).norm(), 1e-12 * fresh.jtwr.norm());
+  EXPECT_EQ(moved->rss, fresh.rss);
+  EXPECT_EQ(moved->lag1, fresh.lag1);
+  // A channel the pass left out cannot be weighted in.
+  PassSettings thermal = from;
+  thermal.weight[0] = 0.0;
+  EXPECT_FALSE(reweighted(residual_pass(w, p, thermal), thermal.weight, to.weight).has_value());
+}
+
+// A fit whose covariance waited, concluded, is the fit that did not wait: the same passes, θ, σ
+// and verdict; before it is concluded, it carries what the placement of switches reads.
+TEST(CovarianceStage, AFitWhoseCovarianceWaitedConcludesAsTheFitThatDidNot) {
+  const auto w = test::paper_record(30.0, {.x = 1e-7, .tbar = 1e-3, .seed = 8});
+  const Vector6 start = test::theta_of(test::paper_actuator()) * 1.1;
+  const FitSettings settings;
+  const FitResult full = fit_staged(w, start, settings);
+  ASSERT_TRUE(full.converged) << full.message;
+  std::optional<PendingCovariance> pending;
+  FitResult waited = fit_staged_deferring_covariance(w, start, settings, pending);
+  ASSERT_TRUE(pending.has_value());
+  EXPECT_TRUE(waited.validated);
+  EXPECT_TRUE(waited.converged);
+  EXPECT_EQ(waited.evaluations, full.evaluations - 1);  // the covariance's pass, not yet run
+  EXPECT_EQ(waited.theta, full.theta);
+  EXPECT_EQ(waited.noise_sigma, full.noise_sigma);
+  EXPECT_EQ(waited.hac_lags, full.hac_lags);
+  EXPECT_EQ(waited.sigma, Vector6::Zero());
+  conclude_deferred(*pending, waited);
+  EXPECT_EQ(waited.evaluations, full.evaluations);
+  EXPECT_EQ(waited.iterations, full.iterations);
+  EXPECT_EQ(waited.sigma, full.sigma);
+  EXPECT_EQ(waited.covariance, full.covariance);
+  EXPECT_EQ(waited.stop, full.stop);
+  EXPECT_EQ(waited.converged, full.converged);
+  EXPECT_EQ(waited.validation.thermal.verdict, full.validation.thermal.verdict);
+  EXPECT_EQ(waited.validation.mechanical.verdict, full.validation.mechanical.verdict);
 }
 
 // At the truth with the true noise levels, the white covariance is the Cramér–Rao bound of the
