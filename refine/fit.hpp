@@ -52,6 +52,10 @@ struct WindowSample {
   // quadratic through the interval's ends and middle (refine/voltage_timing.hpp takes it from a
   // cubic through four rows of a continuous voltage). NaN: the chord's, V linear.
   double voltage_mid = std::numeric_limits<double>::quiet_NaN();
+  // V/s, for a held switch of a continuous voltage (refine/voltage_switches.hpp): how the previous
+  // sample's voltage goes on changing until the switch, and how this one's was already changing
+  // after it. 0: held flat on both sides (a DAC).
+  double slope_before = 0.0, slope_after = 0.0;
   // A, the heater's current at t (the DAQ's measurement, driven by the voltage over the interval
   // ending at t), NaN when not measured. Measured in every sample of a window: the thermal input
   // is the measured power V·I (refine/heater_power.hpp).

@@ -6,6 +6,31 @@
 
 namespace scp::refine {
 
+namespace {
+
+// A piece of length τ over which the voltage goes from v0 at `slope`: V² = (v0 + slope·σ)².
+Piece sloped_piece(double tau, double v0, double slope) noexcept {
+  return {tau, v0 * v0, 2.0 * v0 * slope, slope * slope};
+}
+
+// When the voltage of `cur` landed, `input_delay` later than recorded (see pieces_between).
+double switch_instant(const WindowSample& prev, const WindowSample& cur,
+                      double input_delay) noexcept {
+  return input_delay == 0.0 ? cur.voltage_since : std::max(cur.voltage_since, prev.t) + input_delay;
+}
+
+}  // namespace
+
+SwitchLevels switch_levels(const WindowSample& prev, const WindowSample& cur,
+                           double input_delay) noexcept {
+  const double dt = cur.t - prev.t;
+  const double since = switch_instant(prev, cur, input_delay);
+  const double before = std::clamp(since - prev.t, 0.0, dt), after = dt - before;
+  const double a = prev.voltage + cur.slope_before * before;
+  const double b = cur.voltage - cur.slope_after * after;
+  return {a * a, b * b};
+}
+
 int pieces_between(const WindowSample& prev, const WindowSample& cur, Piece out[2],
                    double input_delay) noexcept {
   const double dt = cur.t - prev.t;
@@ -22,19 +47,21 @@ int pieces_between(const WindowSample& prev, const WindowSample& cur, Piece out[
     out[0] = {dt, u0, (4.0 * um - 3.0 * u0 - u1) / dt, 2.0 * (u0 - 2.0 * um + u1) / (dt * dt)};
     return 1;
   }
-  const double u_prev = prev.voltage * prev.voltage;
-  const double u_cur = cur.voltage * cur.voltage;
+  // The previous voltage from prev.t until the switch, going on at slope_before; the new one from
+  // the switch until cur.t, arriving at cur.voltage at slope_after.
+  const double a = prev.voltage, slope_a = cur.slope_before;
+  const double b = cur.voltage, slope_b = cur.slope_after;
   // A switch at or before the previous sample (a DAC that switches at sample instants, or −∞)
   // is one at prev.t as far as this interval can tell.
-  const double since =
-      input_delay == 0.0 ? cur.voltage_since : std::max(cur.voltage_since, prev.t) + input_delay;
+  const double since = switch_instant(prev, cur, input_delay);
   if (since > prev.t && since < cur.t) {
-    out[0] = {since - prev.t, u_prev};
-    out[1] = {cur.t - since, u_cur};
+    out[0] = sloped_piece(since - prev.t, a, slope_a);
+    out[1] = sloped_piece(cur.t - since, b - slope_b * (cur.t - since), slope_b);
     return 2;
   }
   // Not yet landed at the sample instant: the whole interval saw the previous voltage.
-  out[0] = {dt, since >= cur.t ? u_prev : u_cur};
+  out[0] =
+      since >= cur.t ? sloped_piece(dt, a, slope_a) : sloped_piece(dt, b - slope_b * dt, slope_b);
   return 1;
 }
 

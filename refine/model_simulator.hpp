@@ -1,8 +1,9 @@
 #pragma once
 // The model of refine/fit.hpp simulated from the recorded voltage, one sample interval at a time.
 //
-// Thermal block, dT̄/dt = −θ5 T̄ + θ6 V²: exact for V² held over a piece (the interval is cut at
-// `voltage_since` when the new voltage landed inside it, so each piece has one V²).
+// Thermal block, dT̄/dt = −θ5 T̄ + θ6 V²: exact for V² quadratic over a piece (the interval is cut
+// at `voltage_since` when the new voltage landed inside it; each side of a switch is held or, for
+// a continuous voltage, goes on at its slope).
 // Mechanical block, d[x, ẋ]/dt = A(t)[x, ẋ] + f(t) with A = [[0, 1], [−θ3, −(θ1 + θ2 T̄)]] and
 // f = [0, −θ4 T̄]: linear and time-varying only through T̄, which is smooth inside a piece (time
 // constant 1/θ5 ≈ 17 s for the paper's actuator). Over a piece σ ∈ [0, τ], T̄ is replaced by its
@@ -65,6 +66,14 @@ inline double end_input(const Piece& p) noexcept {
 // moved out of the interval is held at its end, and one moved before it at its start.
 int pieces_between(const WindowSample& prev, const WindowSample& cur, Piece out[2],
                    double input_delay = 0.0) noexcept;
+
+// V² of a held switch's interval just before and just after the switch (pieces_between's, with
+// WindowSample::slope_before and slope_after): the step in heating that moving the switch trades.
+struct SwitchLevels {
+  double before = 0.0, after = 0.0;
+};
+SwitchLevels switch_levels(const WindowSample& prev, const WindowSample& cur,
+                           double input_delay = 0.0) noexcept;
 
 // Exact coefficients of the thermal block over a piece of length τ (z = −θ5τ):
 //   T̄(τ) = decay·T̄(0) + θ6·(gain·u + gain1·du + gain2·ddu),

@@ -288,7 +288,8 @@ struct Reference {
     const ModelState before = state;
     advance_interval(theta, prev, cur, settings.input_delay, state, cache, &u, tc);
     if (!landing) return;
-    const double du = cur.voltage * cur.voltage - prev.voltage * prev.voltage;
+    const SwitchLevels levels = switch_levels(prev, cur, settings.input_delay);
+    const double du = levels.after - levels.before;
     filter.predict(theta, before, state, cur.t - prev.t,
                    since_landing(prev, cur, settings.input_delay), theta[kHeating] * du,
                    settings.timing_variance);

@@ -100,9 +100,8 @@ class PerturbationSteps {
     const ThermalLinearization l = linearize_thermal(theta_, tc_, prev_.tbar, thermal_input);
     const double lag = sensor_lag_ > 0.0 ? lag_decay_(-dt / sensor_lag_) : 0.0;
     if (start != nullptr) {
-      const double before = w[k - 1].voltage * w[k - 1].voltage;
-      const double after = w[k].voltage * w[k].voltage;
-      const double heat = l.b * (before - after) * dt;
+      const SwitchLevels levels = switch_levels(w[k - 1], w[k]);
+      const double heat = l.b * (levels.before - levels.after) * dt;
       *start << heat, heat * (1.0 - lag), 0.0, 0.0;
     }
     const double decay = thermal_decay_(-l.a * dt);

@@ -34,6 +34,14 @@ double switch_floor(std::span<const WindowSample> w) {
   return std::max(0.01 * (hi - lo), 10.0 * step_noise);
 }
 
+// The chord's slope of interval k where it is one of the voltage's continuous stretches (not a
+// switch, not a gap, inside the window); 0 otherwise, which holds that side of a switch flat.
+double chord_slope(std::span<const WindowSample> w, std::size_t k,
+                   const std::vector<bool>& switched) noexcept {
+  if (k < 1 || k >= w.size() || switched[k] || !(w[k].t > w[k - 1].t)) return 0.0;
+  return slope_into(w, k);
+}
+
 }  // namespace
 
 std::vector<bool> find_voltage_switches(std::span<const WindowSample> w) {
@@ -61,6 +69,8 @@ std::size_t hold_voltage_switches(std::span<WindowSample> w, double phase) {
       w[k].voltage_ramp = false;
       w[k].voltage_mid = std::numeric_limits<double>::quiet_NaN();
       w[k].voltage_since = w[k - 1].t + phase * (w[k].t - w[k - 1].t);
+      w[k].slope_before = chord_slope(w, k - 1, switched);
+      w[k].slope_after = chord_slope(w, k + 1, switched);
       ++held;
     } else if (switched[k - 1] || (k + 1 < w.size() && switched[k + 1])) {
       w[k].voltage_mid = std::numeric_limits<double>::quiet_NaN();

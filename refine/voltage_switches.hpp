@@ -16,10 +16,12 @@ namespace scp::refine {
 // between A² and B², a heat deficit (A − B)²/6 at every switch, up or down, that no θ explains.
 // Each interval find_voltage_switches flags becomes a held voltage switched `phase` (0..1) of the
 // way through it (voltage_since), and its neighbours keep the chord (the cubic would reach across
-// the switch). Where in its interval a switch fell the rows cannot say: 0 is a switch just after
-// the previous sample, 1 one at the row's own instant (a generator on the DAQ's clock whose row
-// reads the new level), ½ the mean of one on a clock of its own; T̄ can
-// (refine/voltage_timing.hpp, choose_switch_phase). prepare_window calls it after
+// the switch). Each side of the switch goes on at its neighbour's chord (slope_before,
+// slope_after): a drive that is moving when it switches (a step on a sine) left flat over the
+// interval loses A·V'·Δ² of heat at every switch. Where in its interval a switch fell the rows
+// cannot say: 0 is a switch just after the previous sample, 1 one at the row's own instant (a
+// generator on the DAQ's clock whose row reads the new level), ½ the mean of one on a clock of its
+// own; T̄ can (refine/voltage_timing.hpp, choose_switch_phase). prepare_window calls it after
 // add_cubic_midpoints; returns how many rows it made held. In a foh window, a held row is a switch
 // (count_voltage_switches).
 std::size_t hold_voltage_switches(std::span<WindowSample> window, double phase);
