@@ -1,5 +1,5 @@
 // The heat a held switch of a continuous drive puts over its interval (hold_voltage_switches,
-// pieces_between), against ∫V² of the drive itself (tools/benchsim/analog_voltage.hpp, Gauss–
+// mean_square_voltage), against ∫V² of the drive itself (tools/benchsim/analog_voltage.hpp, Gauss–
 // Legendre between its own switches): light-stiff's PRBS of 1 s bits rides on a sine that keeps
 // moving through every switch.
 #include <gtest/gtest.h>
@@ -9,7 +9,7 @@
 #include <cstdio>
 #include <vector>
 
-#include "refine/model_simulator.hpp"
+#include "refine/validate_fit.hpp"
 #include "refine/voltage_timing.hpp"
 #include "tests/benchsim/bench_window.hpp"
 #include "tests/benchsim/light_stiff_bench.hpp"
@@ -45,18 +45,6 @@ double square_integral(const AnalogVoltage& v, double a, double b) {
   return sum;
 }
 
-// ∫ V² over the interval ending at `cur` as the model integrates it.
-double model_square_integral(const refine::WindowSample& prev, const refine::WindowSample& cur) {
-  refine::Piece pieces[2];
-  const int n = refine::pieces_between(prev, cur, pieces);
-  double sum = 0.0;
-  for (int i = 0; i < n; ++i) {
-    const refine::Piece& p = pieces[i];
-    sum += p.tau * (p.u + p.tau * (p.du / 2.0 + p.ddu * p.tau / 3.0));
-  }
-  return sum;
-}
-
 struct HeatError {
   double switches = 0.0;  // Σ |error| over the switches' intervals, V²·s
   double largest = 0.0;   // the largest at one switch
@@ -68,7 +56,8 @@ HeatError switch_heat_error(const std::vector<refine::WindowSample>& w, const An
   for (std::size_t k = 1; k < w.size(); ++k) {
     if (w[k].voltage_ramp) continue;
     const double error =
-        std::abs(model_square_integral(w[k - 1], w[k]) - square_integral(v, w[k - 1].t, w[k].t));
+        std::abs(refine::mean_square_voltage(w[k - 1], w[k]) * (w[k].t - w[k - 1].t) -
+                 square_integral(v, w[k - 1].t, w[k].t));
     e.switches += error;
     e.largest = std::max(e.largest, error);
     ++e.count;
