@@ -67,8 +67,7 @@ bool joint_pass_has_the_sums(const FitContext& ctx, const FitState& state) {
   if (sums == nullptr || state.joint.validator == nullptr || !state.joint.pass.finite ||
       state.joint.p != state.p)
     return false;
-  return !sums->only_at_own_lags ||
-         sums->hac_bandwidth - 1 == newey_west_lags(ctx, state.joint.pass);
+  return !sums->only_at_own_lags || sums->chooses_own_lags(state.joint.pass);
 }
 
 }  // namespace

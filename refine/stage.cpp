@@ -151,9 +151,7 @@ StageResult run_stage(std::span<const WindowSample> window, const Coordinates& c
       e.pass =
           stage_pass(window, p, pass_settings, with_sums ? sums : nullptr, budget, e.validator);
     }
-    if (start && sums != nullptr && sums->only_at_own_lags && sums->lags_of && e.pass.finite &&
-        sums->lags_of(e.pass) + 1 != sums->hac_bandwidth)
-      sums = nullptr;
+    if (start && sums != nullptr && !sums->serves_trials_from(e.pass)) sums = nullptr;
     // An unstable model (negative damping at some T̄ of the window, θ3 or θ5 ≤ 0) counts as not
     // finite: the solver backs off instead of following a diverging simulation.
     e.finite = e.pass.finite && std::isfinite(e.pass.cost) &&

@@ -87,6 +87,15 @@ struct TrialCovariance {
   bool only_at_own_lags = false;
   // The Newey–West lags a pass's residuals choose (estimate_covariance's rule).
   std::function<int(const PassResult&)> lags_of;
+
+  // Whether `pass`'s residuals choose the lags these sums are taken at.
+  bool chooses_own_lags(const PassResult& pass) const {
+    return lags_of && lags_of(pass) + 1 == hac_bandwidth;
+  }
+  // Whether the trials of a stage that starts at `start` carry the sums (only_at_own_lags).
+  bool serves_trials_from(const PassResult& start) const {
+    return !only_at_own_lags || !start.finite || chooses_own_lags(start);
+  }
 };
 
 // How a stage runs its Levenberg–Marquardt (LmSettings's members of the same names).
