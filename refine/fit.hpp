@@ -201,9 +201,9 @@ struct FitResult {
   // the guessed interval's (refine/voltage_timing.hpp).
   VoltageInterval voltage_interval = VoltageInterval::before;
   IntervalEvidence voltage_interval_evidence;
-  // An undetermined interval's share of `covariance` (and so of `sigma`): w(1 − w)·ddᵀ, d the
-  // other interval's θ minus this one's, w the other's weight from the criterion (Schwarz's
-  // approximation of its posterior probability: model averaging over the two). Zero otherwise.
+  // An undetermined interval's share of `covariance` (and so of `sigma`): w·ddᵀ, d the other
+  // interval's θ minus this one's, w the other's weight from the criterion (Schwarz's
+  // approximation of its posterior probability; refine/interval_averaging.hpp). Zero otherwise.
   Matrix6 interval_covariance = Matrix6::Zero();
   // A smooth voltage's switches and where in their intervals the fit put them (foh, smooth), and
   // where each placed switch fell, for the next window's warm refit (refine/warm_start.hpp).

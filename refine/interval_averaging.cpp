@@ -23,7 +23,7 @@ Matrix6 interval_covariance(const FitResult& a, const FitResult& b, double stati
   for (int i = 0; i < 6; ++i)
     if (known[static_cast<std::size_t>(i)] || !std::isfinite(d[i])) d[i] = 0.0;
   const double w = 1.0 / (1.0 + std::exp(0.5 * std::max(statistic, 0.0)));
-  return w * (1.0 - w) * d * d.transpose();
+  return w * d * d.transpose();
 }
 
 void add_covariance_share(FitResult& r, const Matrix6& share) {
