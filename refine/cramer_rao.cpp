@@ -3,11 +3,47 @@
 
 #include "refine/covariance.hpp"
 #include "refine/fit.hpp"
+#include "refine/input_delay.hpp"
 #include "refine/residual_pass.hpp"
 #include "refine/switch_placement.hpp"
+#include "refine/voltage_delay_bound.hpp"
 #include "refine/voltage_timing.hpp"
 
 namespace scp::refine {
+
+namespace {
+
+// The bound's pass at the truth: its parameter vector, the slots a fit estimates and the pass's
+// weights (the channels' noise).
+struct BoundSetup {
+  ParamVector p = ParamVector::Zero();
+  FreeMask free{};
+  PassSettings pass;
+};
+
+BoundSetup bound_setup(const Vector6& theta, const InitialState& initial,
+                       const Vector2& noise_sigma, const std::array<bool, 6>& known,
+                       const NuisanceSettings& nuisance, const ExtensionSettings& extensions,
+                       const Tempcos& truth) {
+  BoundSetup out;
+  out.p = param_vector(theta, initial);
+  out.p[kResistanceTempcoSlot] = truth.rho;
+  out.p[kStiffnessSofteningSlot] = truth.kappa;
+  out.p[kCoolingTempcoSlot] = truth.gamma;
+  out.p[kSensorLagSlot] = nuisance.sensor_lag.value;
+  out.free = free_slots(known, nuisance);
+  free_extensions(extensions, out.free);
+  out.pass.extensions = extensions.any();
+  out.pass.sensor_lag = !nuisance.sensor_lag.fixed;
+  for (int c = 0; c < 2; ++c) {
+    const double s = noise_sigma[c];
+    out.pass.weight[static_cast<std::size_t>(c)] =
+        std::isfinite(s) && s > 0.0 ? 1.0 / (s * s) : 0.0;
+  }
+  return out;
+}
+
+}  // namespace
 
 Matrix6 cramer_rao_bound(std::span<const WindowSample> window, const Vector6& theta,
                          const InitialState& initial, const Vector2& noise_sigma,
@@ -15,27 +51,47 @@ Matrix6 cramer_rao_bound(std::span<const WindowSample> window, const Vector6& th
                          const ExtensionSettings& extensions, const Tempcos& truth) {
   Matrix6 bound = Matrix6::Zero();
   if (window.size() < 2 || !theta.allFinite() || !initial.allFinite()) return bound;
-  ParamVector p = param_vector(theta, initial);
-  p[kResistanceTempcoSlot] = truth.rho;
-  p[kStiffnessSofteningSlot] = truth.kappa;
-  p[kCoolingTempcoSlot] = truth.gamma;
-  p[kSensorLagSlot] = nuisance.sensor_lag.value;
-  FreeMask free = free_slots(known, nuisance);
-  free_extensions(extensions, free);
-  PassSettings ps;
-  ps.extensions = extensions.any();
-  ps.sensor_lag = !nuisance.sensor_lag.fixed;
-  for (int c = 0; c < 2; ++c) {
-    const double s = noise_sigma[c];
-    ps.weight[c] = std::isfinite(s) && s > 0.0 ? 1.0 / (s * s) : 0.0;
-  }
-  const PassResult pass = residual_pass(window, p, ps);
+  const BoundSetup setup =
+      bound_setup(theta, initial, noise_sigma, known, nuisance, extensions, truth);
+  const PassResult pass = residual_pass(window, setup.p, setup.pass);
   ParamMatrix inverse;
-  if (!pass.finite || !inverse_on_free(pass.jtwj, free, inverse)) {
+  if (!pass.finite || !inverse_on_free(pass.jtwj, setup.free, inverse)) {
     bound.setConstant(std::numeric_limits<double>::infinity());
     return bound;
   }
   return inverse.topLeftCorner<kThetaSize, kThetaSize>();
+}
+
+VoltageDelayBound voltage_delay_bound(std::span<const WindowSample> window, const Vector6& theta,
+                                      const InitialState& initial, const Vector2& noise_sigma,
+                                      const std::array<bool, 6>& known,
+                                      const NuisanceSettings& nuisance,
+                                      const ExtensionSettings& extensions, const Tempcos& truth) {
+  VoltageDelayBound out;
+  if (window.size() < 3 || !theta.allFinite() || !initial.allFinite()) return out;
+  const double h = latest_switch_delay(window, 1.0) / 20.0;
+  if (!(h > 0.0)) return out;
+  BoundSetup setup = bound_setup(theta, initial, noise_sigma, known, nuisance, extensions, truth);
+  std::array<PassResult, 3> at;  // d = 0, h, 2h: one-sided, a switch cannot move before its sample
+  for (std::size_t i = 0; i < at.size(); ++i) {
+    setup.pass.input_delay = static_cast<double>(i) * h;
+    at[i] = residual_pass(window, setup.p, setup.pass);
+    if (!at[i].finite) return out;
+  }
+  ParamMatrix inverse;
+  if (!inverse_on_free(at[0].jtwj, setup.free, inverse)) return out;
+  // b = J_pᵀW J_d from the score's slope, c = J_dᵀW J_d from the cost's curvature (both second
+  // order in h; the residuals at the truth are the plant's discretization's, near 0).
+  const ParamVector b = (-3.0 * at[0].jtwr + 4.0 * at[1].jtwr - at[2].jtwr) / (2.0 * h);
+  const double c = (at[0].cost - 2.0 * at[1].cost + at[2].cost) / (2.0 * h * h);
+  const ParamVector g = inverse * b;
+  const double schur = c - b.dot(g);
+  if (!(schur > 0.0) || !std::isfinite(schur) || !g.allFinite()) return out;
+  out.ok = true;
+  out.delay_sigma_s = 1.0 / std::sqrt(schur);
+  out.theta_per_second = g.head<kThetaSize>();
+  out.share = out.theta_per_second * out.theta_per_second.transpose() / schur;
+  return out;
 }
 
 namespace {

@@ -64,16 +64,30 @@ inline std::vector<double> simulate_switched(std::span<const refine::WindowSampl
   return out;
 }
 
-// The bound of θ with the switches of `rows` at phases of their own, unknowns beside θ and the
-// initial state, each with the prior of a switch anywhere in its interval (variance 1/12 about ½,
-// where they are taken to be): finite differences of drivers/sim's plant, the prior as rows of
-// the Jacobian.
-inline refine::Matrix6 finite_difference_crb_with_phases(
-    std::span<const refine::WindowSample> window, const refine::Vector6& theta,
-    const refine::InitialState& initial, const refine::Vector2& noise_sigma,
-    const std::vector<std::size_t>& rows) {
-  // Column scaling and QR (not the normal equations): the mechanical columns are nearly
-  // collinear, and JᵀJ would square their condition number.
+// θ's block of the bound from a Jacobian whose rows are divided by their noise sd and whose first
+// six columns are θ's. Column scaling and QR (not the normal equations): the mechanical columns
+// are nearly collinear, and JᵀJ would square their condition number.
+inline refine::Matrix6 theta_bound_of(const Eigen::MatrixXd& jac) {
+  const Eigen::Index columns = jac.cols();
+  const Eigen::VectorXd scale = jac.colwise().norm().transpose();
+  const Eigen::MatrixXd js = jac * scale.cwiseInverse().asDiagonal();
+  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(js);
+  const Eigen::MatrixXd r = qr.matrixQR().topRows(columns).triangularView<Eigen::Upper>();
+  const Eigen::MatrixXd r_inv =
+      r.triangularView<Eigen::Upper>().solve(Eigen::MatrixXd::Identity(columns, columns));
+  const Eigen::MatrixXd cov = scale.cwiseInverse().asDiagonal() * (r_inv * r_inv.transpose()) *
+                              scale.cwiseInverse().asDiagonal();
+  return cov.topLeftCorner<6, 6>();
+}
+
+// The Jacobian of the samples (each divided by its noise sd) over θ, the initial state and the
+// phases of the switches of `rows` (at ½), with the phases' prior (variance 1/12) as rows of its
+// own: central finite differences of drivers/sim's plant.
+inline Eigen::MatrixXd finite_difference_jacobian(std::span<const refine::WindowSample> window,
+                                                  const refine::Vector6& theta,
+                                                  const refine::InitialState& initial,
+                                                  const refine::Vector2& noise_sigma,
+                                                  const std::vector<std::size_t>& rows) {
   Eigen::Matrix<double, 9, 1> p;
   p << theta, initial;
   const auto switches = static_cast<Eigen::Index>(rows.size());
@@ -102,15 +116,40 @@ inline refine::Matrix6 finite_difference_crb_with_phases(
     }
   }
   for (Eigen::Index i = 0; i < switches; ++i) jac(samples + i, 9 + i) = std::sqrt(12.0);
-  const Eigen::VectorXd scale = jac.colwise().norm().transpose();
-  const Eigen::MatrixXd js = jac * scale.cwiseInverse().asDiagonal();
-  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(js);
-  const Eigen::MatrixXd r = qr.matrixQR().topRows(columns).triangularView<Eigen::Upper>();
-  const Eigen::MatrixXd r_inv =
-      r.triangularView<Eigen::Upper>().solve(Eigen::MatrixXd::Identity(columns, columns));
-  const Eigen::MatrixXd cov = scale.cwiseInverse().asDiagonal() * (r_inv * r_inv.transpose()) *
-                              scale.cwiseInverse().asDiagonal();
-  return cov.topLeftCorner<6, 6>();
+  return jac;
+}
+
+// The bound of θ with the switches of `rows` at phases of their own, unknowns beside θ and the
+// initial state, each with the prior of a switch anywhere in its interval (variance 1/12 about ½,
+// where they are taken to be).
+inline refine::Matrix6 finite_difference_crb_with_phases(
+    std::span<const refine::WindowSample> window, const refine::Vector6& theta,
+    const refine::InitialState& initial, const refine::Vector2& noise_sigma,
+    const std::vector<std::size_t>& rows) {
+  return theta_bound_of(finite_difference_jacobian(window, theta, initial, noise_sigma, rows));
+}
+
+// The bound of θ with the voltage's delay d unknown beside θ and the initial state (no prior):
+// every switch of `window` (each row whose voltage differs from the previous row's) d later than
+// its sample, the column ∂/∂d by a forward difference at d = 0 (a switch cannot move before its
+// sample), d's step a thousandth of the first interval.
+inline refine::Matrix6 finite_difference_crb_with_delay(
+    std::span<const refine::WindowSample> window, const refine::Vector6& theta,
+    const refine::InitialState& initial, const refine::Vector2& noise_sigma) {
+  Eigen::Matrix<double, 9, 1> p;
+  p << theta, initial;
+  const std::vector<std::size_t> rows = switch_rows(window, 0.0);
+  const auto switches = static_cast<Eigen::Index>(rows.size());
+  const double h = 1e-3;  // of an interval
+  const auto y0 = simulate_switched(window, p, rows, Eigen::VectorXd::Zero(switches));
+  const auto yd = simulate_switched(window, p, rows, Eigen::VectorXd::Constant(switches, h));
+  const double step = h * (window[1].t - window[0].t);
+  Eigen::MatrixXd jac = finite_difference_jacobian(window, theta, initial, noise_sigma, {});
+  jac.conservativeResize(Eigen::NoChange, jac.cols() + 1);
+  for (std::size_t r = 0; r < y0.size(); ++r)
+    jac(static_cast<Eigen::Index>(r), jac.cols() - 1) =
+        (yd[r] - y0[r]) / step / noise_sigma[static_cast<Eigen::Index>(r % 2)];
+  return theta_bound_of(jac);
 }
 
 // The bound without phases: θ and the initial state alone.

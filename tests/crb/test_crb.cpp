@@ -18,6 +18,7 @@
 #include "daemon/config/binder.hpp"
 #include "daemon/config/daemon_config.hpp"
 #include "refine/switch_placement.hpp"
+#include "refine/voltage_delay_bound.hpp"
 #include "tests/crb/fd_fisher.hpp"
 #include "tests/support/run_command.hpp"
 #include "tools/crb/crb_report.hpp"
@@ -203,6 +204,35 @@ TEST(CramerRao, SwitchPhasesAgreeWithFiniteDifferencesOfTheSimulatedPlant) {
   EXPECT_GT(std::sqrt(cov(4, 4) / plain(4, 4)), 1.2);
 }
 
+// A file that does not say when its voltage switched leaves the voltage's delay unknown beside θ
+// (refine::voltage_delay_bound added to cramer_rao_bound): against finite differences of
+// drivers/sim's plant with every switch of heavy-slow's drive moved together. On heavy-slow, whose
+// T̄ is slow, the delay widens θ1..θ4's bound several-fold: their common scale is the lag between
+// heating and motion, which a delay of the heating moves.
+TEST(CramerRao, VoltageDelayAgreesWithFiniteDifferencesOfTheSimulatedPlant) {
+  auto cfg = scp::config::load_config_file(kSource + "/config/actuators/heavy-slow.yaml");
+  const Experiment e = scp::tools::crb::simulate(cfg, 100.0, 100.0);
+  const scp::refine::Vector2 noise(1e-6, 1e-1);
+  const scp::refine::Matrix6 plain =
+      scp::refine::cramer_rao_bound(e.window, e.theta, e.initial, noise);
+  const scp::refine::VoltageDelayBound delay =
+      scp::refine::voltage_delay_bound(e.window, e.theta, e.initial, noise);
+  ASSERT_TRUE(delay.ok);
+  const scp::refine::Matrix6 cov = plain + delay.share;
+  const scp::refine::Matrix6 fd =
+      scp::tools::crb::test::finite_difference_crb_with_delay(e.window, e.theta, e.initial, noise);
+  for (int i = 0; i < 6; ++i) {
+    const double ratio = std::sqrt(cov(i, i) / fd(i, i));
+    const double widened = std::sqrt(cov(i, i) / plain(i, i));
+    std::printf("theta%d: sigma refine / finite differences = %.5f; delay unknown / known %.3f\n",
+                i + 1, ratio, widened);
+    EXPECT_NEAR(ratio, 1.0, 0.01) << "theta" << i + 1;
+    EXPECT_GE(widened, 1.0 - 1e-9) << "theta" << i + 1;
+  }
+  std::printf("sigma_d = %.3g s\n", delay.delay_sigma_s);
+  EXPECT_GT(std::sqrt(cov(0, 0) / plain(0, 0)), 1.5);
+}
+
 std::string run(const std::string& args, int& status) {
   return scp::test::run_command(std::string(SCP_CRB_BINARY) + " " + args, status);
 }
@@ -260,6 +290,35 @@ TEST(Program, ReportsTheBoundAndTheHeatingOfThePaperExperiment) {
   EXPECT_EQ(j["window"]["samples"].get<int>(), 300001);
   EXPECT_DOUBLE_EQ(j["theta"][0].get<double>(), 124.7 / 0.1);
   EXPECT_EQ(j["nuisance_estimated"].size(), 4u);  // the fit's terms, as config/paper.yaml has them
+}
+
+// --voltage-delay on heavy-slow at N3 (its sensor lag estimated, as config/actuators/
+// heavy-slow.yaml has it): the bound widens, the one-period Δχ² is (period / σ_d)², and a lag
+// left free beside the delay widens σ_d (on T̄ a lag and a delay are one model; only x tells them
+// apart), so the bound holds the lag as the fit's interval rule does.
+TEST(Program, BoundsTheVoltagesDelayWhereItsTimingIsUnknown) {
+  const std::string args = "--config " + kSource +
+                           "/config/actuators/heavy-slow.yaml --duration 100 --noise-x 1e-6 "
+                           "--noise-temperature 0.1";
+  int status = 0;
+  const std::string known_out = run(args, status);
+  ASSERT_EQ(status, 0) << known_out;
+  const std::string out = run(args + " --voltage-delay", status);
+  ASSERT_EQ(status, 0) << out;
+  const auto known = nlohmann::json::parse(known_out);
+  const auto j = nlohmann::json::parse(out);
+  EXPECT_FALSE(known["voltage_delay"]["bounded"].get<bool>());
+  const auto& d = j["voltage_delay"];
+  ASSERT_TRUE(d["bounded"].get<bool>()) << out;
+  const double sigma = d["sigma_s"].get<double>();
+  const double period = j["period_s"].get<double>();
+  EXPECT_NEAR(d["one_period_chi2"].get<double>(), (period / sigma) * (period / sigma),
+              1e-9 * d["one_period_chi2"].get<double>());
+  EXPECT_GT(d["lag_free_sigma_s"].get<double>(), 2.0 * sigma);
+  for (int i = 0; i < 6; ++i)
+    EXPECT_GE(j["crb_rel"][i].get<double>(), known["crb_rel"][i].get<double>() * (1 - 1e-12)) << i;
+  EXPECT_GT(j["crb_rel"][0].get<double>(), 1.5 * known["crb_rel"][0].get<double>());
+  EXPECT_GT(d["one_period_shift_sigmas"][0].get<double>(), 1.0);
 }
 
 TEST(Program, RefusesANoiseFreeBoundWithTheRemedy) {

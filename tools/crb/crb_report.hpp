@@ -26,11 +26,22 @@ struct NoiseLevel {
 // With `switch_phases` (the excitation's switches at phases of their own: a generator on a clock
 // of its own, as scp-benchsim --generator-clock-ppm makes it) the phases are bounded as unknowns
 // beside θ (refine::switch_phases_bound_share), and switch_phases {bounded, switches} says so.
+// With `voltage_delay` (the voltage's timing not known: a replay of unknown provenance, whose
+// interval the fit estimates, or a live link's refine.link_timing: estimate) the voltage's delay
+// is bounded as one more unknown (refine::voltage_delay_bound) with the sensor's lag held at the
+// plant's, as the fit tells the voltage's interval, and voltage_delay {bounded, sigma_s,
+// one_period_chi2, one_period_shift_sigmas, lag_free_sigma_s} says what it costs: σ_d, the Δχ²
+// that tells a one-period shift of the interval, how many of θ's known-timing σ that shift moves
+// each θ, and (where the lag is estimated) σ_d with the lag free too, which only x constrains.
 // Throws std::invalid_argument when a noise level is not > 0 (a noise-free channel has no bound).
+struct TimingUnknowns {
+  bool switch_phases = false;
+  bool voltage_delay = false;
+};
 nlohmann::json crb_report(const Experiment& experiment, const NoiseLevel& noise,
                           const std::array<bool, 6>& known, double ambient_c,
                           double temperature_max_c, const refine::NuisanceSettings& nuisance = {},
                           const refine::ExtensionSettings& extensions = {},
-                          bool switch_phases = false);
+                          TimingUnknowns timing = {});
 
 }  // namespace scp::tools::crb

@@ -25,7 +25,7 @@ int main(int argc, char** argv) {
   double noise_x = -1.0;
   double noise_temperature = -1.0;
   bool pretty = false;
-  bool switch_phases = false;
+  scp::tools::crb::TimingUnknowns timing;
   app.add_option("--config", config_path, "daemon config file (driver.type: sim)")->required();
   app.add_option("--duration", duration, "loop time of the experiment in s (default 300)")
       ->check(CLI::Range(1e-3, 1e7));
@@ -38,9 +38,12 @@ int main(int argc, char** argv) {
   app.add_option("--noise-temperature", noise_temperature,
                  "sd of the T sensor in °C (default: driver.sim.noise.temperature)")
       ->check(CLI::Range(0.0, 100.0));
-  app.add_flag("--switch-phases", switch_phases,
+  app.add_flag("--switch-phases", timing.switch_phases,
                "the excitation's switches fall at phases of their own (a generator on a clock of "
                "its own): bound the phases as unknowns beside θ, as the fit estimates them");
+  app.add_flag("--voltage-delay", timing.voltage_delay,
+               "the voltage's timing is not known (a replay whose interval the fit estimates, a "
+               "live link's refine.link_timing: estimate): bound its delay as one more unknown");
   app.add_flag("--pretty", pretty, "indented JSON");
   CLI11_PARSE(app, argc, argv);
 
@@ -56,7 +59,7 @@ int main(int argc, char** argv) {
     for (std::size_t i = 0; i < 6; ++i) known[i] = cfg.estimator.known[i];
     const auto report = scp::tools::crb::crb_report(
         experiment, noise, known, cfg.actuator.ambient_c, cfg.safety.temperature_max_c,
-        cfg.refine.nuisance, cfg.refine.extensions, switch_phases);
+        cfg.refine.nuisance, cfg.refine.extensions, timing);
     std::printf("%s\n", report.dump(pretty ? 2 : -1).c_str());
     return 0;
   } catch (const std::exception& e) {
