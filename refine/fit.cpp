@@ -428,19 +428,62 @@ double joint_criterion(const FitResult& r, const std::array<bool, 6>& known) {
   return bic(channels, parameters);
 }
 
-// Whether the joint fits under both intervals decide what T̄ alone could not: `difference` is the
-// other's criterion minus the fitted one's (> 0: the fitted one is the better); `e` then says so.
-// Where they do not, the thermal stage's weighing stands: its rule for a sensor lag that mimics
-// the other interval (refine/voltage_timing.hpp) has no counterpart in two fits that both free
-// the lag, and on heavy-slow at N3, whose slow mechanics see no millisecond, taking the joint
-// fits' better one at differences of 0.1–0.7 fitted the wrong interval in 2 of 10 continuous
-// files (θ1..θ4 at 4.4× their bound, from 1.1×) and 3 of 10 held ones.
-bool decided_jointly(IntervalEvidence& e, double difference) {
-  if (!(std::abs(difference) >= e.threshold)) return false;
+// What holding the sensor's lag at 0 would change in a fit's joint criterion, to second order:
+// (τ̂/σ_τ)² more deviance (the cost's profile along the lag is a parabola over a few σ) and one
+// slot's price less (ln of both channels' samples). 0 where the lag was held.
+double lag_hold_price(const FitResult& r) {
+  const NuisanceEstimate& lag = r.nuisance.sensor_lag;
+  if (!lag.estimated || !(lag.sigma > 0.0)) return 0.0;
+  const double z = lag.value / lag.sigma;
+  return std::isfinite(z) ? z * z - std::log(2.0 * static_cast<double>(r.samples)) : 0.0;
+}
+
+// A fitted lag that a one-period shift of the voltage could stand for (kShiftLikeLagPeriods).
+bool shift_like_lag(const FitResult& r, double period) {
+  const NuisanceEstimate& lag = r.nuisance.sensor_lag;
+  return !lag.estimated || std::abs(lag.value) <= kShiftLikeLagPeriods * period;
+}
+
+// The joint criterion of `other` minus that of `fitted` (> 0: the fitted one is the better). Both
+// fits free the sensor's lag, and a lag of a period mimics the other interval: where both fitted
+// lags are that short, the lag is a one-period shift in disguise, and the two are weighed with it
+// held at 0, as the thermal stage's rule weighs them (refine/voltage_timing.cpp): each criterion
+// plus its lag_hold_price. That lets x, through the mechanical block, tell the shift from the
+// lag, which with the lag free it cannot (docs/numerics.md: the one-period shift's Δχ² with x and
+// T̄, with T̄ alone and with the lag free). `lag_held` says which weighing was made.
+double joint_difference(const FitResult& fitted, const FitResult& other,
+                        const std::array<bool, 6>& known, double period, bool& lag_held) {
+  const double free = joint_criterion(other, known) - joint_criterion(fitted, known);
+  lag_held = shift_like_lag(fitted, period) && shift_like_lag(other, period) &&
+             (fitted.nuisance.sensor_lag.estimated || other.nuisance.sensor_lag.estimated);
+  return lag_held ? free + lag_hold_price(other) - lag_hold_price(fitted) : free;
+}
+
+double mean_period(std::span<const WindowSample> window) {
+  return window.size() > 1
+             ? (window.back().t - window.front().t) / static_cast<double>(window.size() - 1)
+             : 0.0;
+}
+
+// Whether the joint fits under both intervals are the evidence that stands: `difference` is the
+// other's criterion minus the fitted one's (> 0: the fitted one is the better); `e` then carries
+// it, determined where it reaches the threshold. Weighed with the lag held (joint_difference),
+// they are better evidence than T̄ alone at any margin, since x adds to what T̄ tells: they stand
+// and the better one is fitted even where the interval stays undetermined. With the lag free
+// they stand only where they decide: a lag that mimics the other interval makes their
+// difference small and its sign a guess (on heavy-slow at N3, whose slow mechanics see no
+// millisecond, taking the free-lag fits' better one at differences of 0.1–0.7 fitted the wrong
+// interval in 2 of 10 continuous files, θ1..θ4 at 4.4× their bound from 1.1×, and 3 of 10 held
+// ones).
+bool weighed_jointly(IntervalEvidence& e, double difference, bool lag_held) {
+  if (!std::isfinite(difference)) return false;
+  const bool decides = std::abs(difference) >= e.threshold;
+  if (!decides && !lag_held) return false;
   e.joint = true;
+  e.joint_lag_held = lag_held;
   e.thermal_statistic = e.statistic;
   e.statistic = std::abs(difference);
-  e.determined = true;
+  e.determined = decides;
   return true;
 }
 
@@ -457,9 +500,10 @@ void compare_intervals(std::span<const WindowSample> window, const Vector6& thet
   result.evaluations += alt.evaluations;
   if (!alt.converged) return;
   IntervalEvidence e = result.voltage_interval_evidence;
+  bool lag_held = false;
   const double difference =
-      joint_criterion(alt, settings.known) - joint_criterion(result, settings.known);
-  if (decided_jointly(e, difference) && difference < 0.0) {
+      joint_difference(result, alt, settings.known, mean_period(window), lag_held);
+  if (weighed_jointly(e, difference, lag_held) && difference < 0.0) {
     // the other interval fits x and T̄ together better
     alt.iterations = result.iterations;
     alt.evaluations = result.evaluations;
@@ -484,10 +528,11 @@ void check_declared_jointly(std::span<const WindowSample> window, const Vector6&
   result.iterations += alt.iterations;
   result.evaluations += alt.evaluations;
   if (!alt.converged) return;
+  bool lag_held = false;
   const double difference =
-      joint_criterion(alt, settings.known) - joint_criterion(result, settings.known);
+      joint_difference(result, alt, settings.known, mean_period(window), lag_held);
   IntervalEvidence& e = result.voltage_interval_evidence;
-  if (decided_jointly(e, difference)) e.contradicted = difference < 0.0;
+  if (weighed_jointly(e, difference, lag_held)) e.contradicted = e.determined && difference < 0.0;
 }
 
 // The declared interval, with the evidence of weighing it against the other as `estimate` would

@@ -62,6 +62,9 @@ struct IntervalEvidence {
   // shift T̄ cannot), and `thermal_statistic` the thermal stage's.
   bool joint = false;
   double thermal_statistic = 0.0;
+  // With `joint`: the two fits were weighed with the sensor's lag held at 0 (each fit's lag a few
+  // periods or less: a one-period shift in disguise, refine/fit.cpp's joint_difference).
+  bool joint_lag_held = false;
 };
 // A bias of a quarter σ costs an estimate 3 % of its RMS error and its 2σ interval 1 % coverage.
 inline constexpr double kEquivalentThetaShift = 0.25;

@@ -99,10 +99,6 @@ ThermalCriterion thermal_criterion(std::span<const WindowSample> window, const P
   return {n * std::log(variance) + k * std::log(n), state.p[kSensorLagSlot], state.p};
 }
 
-// A lag this many sampling periods long or shorter is what a one-period shift of the voltage
-// looks like in T̄ (to first order), not a sensor's.
-constexpr double kShiftLikeLagPeriods = 3.0;
-
 // χ²₁'s quantile at 0.99: IntervalEvidence::threshold.
 constexpr double kIntervalThreshold = 6.6349;
 

@@ -67,6 +67,10 @@ WindowSample prepared_sample(const WindowSample& prev, const WindowSample& cur,
 // interval, alternating in sign: T̄ resolves it where the switches are many (hundreds in 300 s of a
 // 1 s PRBS) and the sensor fine. Phase 0 and no evaluation where there are no switches.
 inline constexpr std::array<double, 3> kSwitchPhases{0.0, 0.5, 1.0};
+
+// A lag this many sampling periods long or shorter is what a one-period shift of the voltage
+// looks like in T̄ (to first order), not a sensor's.
+inline constexpr double kShiftLikeLagPeriods = 3.0;
 SwitchPhase choose_switch_phase(std::span<const WindowSample> window, VoltageInterval interval,
                                 const Vector6& theta_start, const FitSettings& settings);
 

@@ -331,7 +331,8 @@ std::string interval_line(const nlohmann::json& r) {
                   number_or_dash(t.value("threshold", nlohmann::json()), "%.3g").c_str());
     out += line;
     if (t.value("joint", false)) {
-      std::snprintf(line, sizeof line, "; from x and T together (T alone: %s)",
+      std::snprintf(line, sizeof line, "; from x and T together%s (T alone: %s)",
+                    t.value("joint_lag_held", false) ? ", the sensor lag held at 0" : "",
                     number_or_dash(t.value("thermal_statistic", nlohmann::json()), "%.3g").c_str());
       out += line;
     }

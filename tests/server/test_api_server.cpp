@@ -76,7 +76,7 @@ TEST_F(ApiServerTest, VersionOnConnectThenStatusAndEstimate) {
   EXPECT_EQ((*version)["class"], "VERSION");
   EXPECT_EQ((*version)["release"], "9.9.9-test");
   EXPECT_EQ((*version)["proto_major"], 1);
-  EXPECT_EQ((*version)["proto_minor"], 16);
+  EXPECT_EQ((*version)["proto_minor"], 17);
 
   ASSERT_TRUE(c.send({{"request", "status"}}));
   const auto status = c.read_json();

@@ -17,7 +17,7 @@ using nlohmann::json;
 
 TEST(Render, VersionErrorAckWatchAreExactLines) {
   EXPECT_EQ(render_version("1.2.3"),
-            "{\"class\":\"VERSION\",\"proto_major\":1,\"proto_minor\":16,\"release\":\"1.2.3\"}\n");
+            "{\"class\":\"VERSION\",\"proto_major\":1,\"proto_minor\":17,\"release\":\"1.2.3\"}\n");
   EXPECT_EQ(render_error("bad \"x\""), "{\"class\":\"ERROR\",\"message\":\"bad \\\"x\\\"\"}\n");
   EXPECT_EQ(render_ack("reset", true, "done"),
             "{\"class\":\"ACK\",\"message\":\"done\",\"ok\":true,\"request\":\"reset\"}\n");
@@ -394,8 +394,23 @@ TEST(Render, AnIntervalTheJointFitsDecidedSaysSo) {
   EXPECT_DOUBLE_EQ(test["statistic"].get<double>(), 108.5);
   EXPECT_DOUBLE_EQ(test["thermal_statistic"].get<double>(), 1.4);
   EXPECT_EQ(test["determined"], true);
+  EXPECT_EQ(test["joint_lag_held"], false);
   EXPECT_EQ(j["refined"]["voltage_interval"], "before");
   EXPECT_EQ(j["best"], "refined");
+
+  // Weighed with the sensor's lag held: said, and standing where it decides nothing.
+  r.voltage_interval_evidence.joint_lag_held = true;
+  r.voltage_interval_evidence.determined = false;
+  r.voltage_interval_evidence.statistic = 4.2;
+  r.voltage_interval_evidence.equivalent = false;
+  j = json::parse(render_estimate(s.estimate, &r, 12.5));
+  EXPECT_EQ(j["refined"]["voltage_interval_test"]["joint_lag_held"], true);
+  EXPECT_EQ(j["refined"]["voltage_interval_test"]["determined"], false);
+  EXPECT_EQ(j["refined"]["voltage_interval"], "undetermined");
+  EXPECT_NE(j["best"], "refined");
+  r.voltage_interval_evidence.determined = true;
+  r.voltage_interval_evidence.statistic = 108.5;
+  r.voltage_interval_evidence.equivalent = true;
 
   r.voltage_interval_evidence.joint = false;
   j = json::parse(render_estimate(s.estimate, &r, 12.5));

@@ -196,6 +196,7 @@ void put_voltage_interval(json& o, const refine::RefinedView& r) {
   put_finite(test, "threshold", e.threshold);
   if (e.joint) {
     test["joint"] = true;
+    test["joint_lag_held"] = e.joint_lag_held;
     put_finite(test, "thermal_statistic", e.thermal_statistic);
   }
   if (e.compared) {
