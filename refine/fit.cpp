@@ -553,6 +553,18 @@ IntervalChoice weigh_declared_interval(std::span<const WindowSample> window,
   return declared;
 }
 
+// T̄ alone decides the interval by a margin this many thresholds wide or wider without the joint
+// fits. Short of it x could still overturn T̄ (the joint fits weigh both, the better evidence),
+// and T̄ alone errs where a one-period shift is only a few of its σ (heavy-slow at N3;
+// docs/numerics.md). Past it the other interval would need x to say three thresholds' worth
+// against T̄, and a window that clear costs one fit, not two.
+constexpr double kJointCheckMargins = 4.0;
+
+// Whether the interval T̄ chose is weighed again by the joint fits under both (compare_intervals).
+bool worth_weighing_jointly(const IntervalEvidence& e) {
+  return !e.determined || e.statistic < kJointCheckMargins * e.threshold;
+}
+
 // The full staged fit (without FitSettings::warm).
 FitResult fit_cold(std::span<const WindowSample> window, const Vector6& theta_start,
                    const FitSettings& settings) {
@@ -567,11 +579,11 @@ FitResult fit_cold(std::span<const WindowSample> window, const Vector6& theta_st
   }
   FitResult result = fit_under(window, theta_start, settings, choice.interval, choice.switches);
   result.voltage_interval_evidence = choice.evidence;
-  if (!choice.evidence.determined && result.converged) {
-    if (choice.evidence.estimated) compare_intervals(window, theta_start, settings, choice, result);
-    if (choice.evidence.checked)
-      check_declared_jointly(window, theta_start, settings, choice, result);
-  }
+  if (!result.converged) return result;
+  if (choice.evidence.estimated && worth_weighing_jointly(choice.evidence))
+    compare_intervals(window, theta_start, settings, choice, result);
+  if (choice.evidence.checked && !choice.evidence.determined)
+    check_declared_jointly(window, theta_start, settings, choice, result);
   return result;
 }
 

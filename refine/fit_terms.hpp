@@ -56,8 +56,9 @@ struct IntervalEvidence {
   // declaration's, which the data reject.
   bool checked = false;
   bool contradicted = false;
-  // Where the thermal stage's criterion (on T̄ alone) left the interval undetermined and both
-  // intervals' full fits converged: `statistic` is then theirs, Schwarz's criterion over x and T̄
+  // Where the thermal stage's criterion (on T̄ alone) left the interval undetermined, or decided
+  // it by less than four thresholds, and both intervals' full fits converged, these weighed it
+  // again: where their evidence stands `statistic` is theirs, Schwarz's criterion over x and T̄
   // together (the mechanics follow the heat within milliseconds, so x often tells a one-period
   // shift T̄ cannot), and `thermal_statistic` the thermal stage's.
   bool joint = false;
