@@ -66,8 +66,7 @@ Budget::Budget(std::span<const WindowSample> window, const FitSettings& settings
       max_substeps_(substeps_per_sample(settings) * static_cast<long>(max_evaluations_) *
                     static_cast<long>(window.size())),
       cancel_(settings.cancel) {
-  const double span = window.back().t - window.front().t;
-  mean_interval_ = span / static_cast<double>(window.size() - 1);
+  mean_interval_ = mean_sample_period(window);
 }
 
 StopReason Budget::stop() const {

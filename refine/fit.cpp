@@ -459,12 +459,6 @@ double joint_difference(const FitResult& fitted, const FitResult& other,
   return lag_held ? free + lag_hold_price(other) - lag_hold_price(fitted) : free;
 }
 
-double mean_period(std::span<const WindowSample> window) {
-  return window.size() > 1
-             ? (window.back().t - window.front().t) / static_cast<double>(window.size() - 1)
-             : 0.0;
-}
-
 // Whether the joint fits under both intervals are the evidence that stands: `difference` is the
 // other's criterion minus the fitted one's (> 0: the fitted one is the better); `e` then carries
 // it, determined where it reaches the threshold. Weighed with the lag held (joint_difference),
@@ -502,7 +496,7 @@ void compare_intervals(std::span<const WindowSample> window, const Vector6& thet
   IntervalEvidence e = result.voltage_interval_evidence;
   bool lag_held = false;
   const double difference =
-      joint_difference(result, alt, settings.known, mean_period(window), lag_held);
+      joint_difference(result, alt, settings.known, mean_sample_period(window), lag_held);
   if (weighed_jointly(e, difference, lag_held) && difference < 0.0) {
     // the other interval fits x and T̄ together better
     alt.iterations = result.iterations;
@@ -530,7 +524,7 @@ void check_declared_jointly(std::span<const WindowSample> window, const Vector6&
   if (!alt.converged) return;
   bool lag_held = false;
   const double difference =
-      joint_difference(result, alt, settings.known, mean_period(window), lag_held);
+      joint_difference(result, alt, settings.known, mean_sample_period(window), lag_held);
   IntervalEvidence& e = result.voltage_interval_evidence;
   if (weighed_jointly(e, difference, lag_held)) e.contradicted = e.determined && difference < 0.0;
 }

@@ -62,6 +62,13 @@ struct WindowSample {
   double current = std::numeric_limits<double>::quiet_NaN();
 };
 
+// The window's mean sampling period (s): its span over its intervals; NaN with fewer than two
+// samples.
+inline double mean_sample_period(std::span<const WindowSample> w) noexcept {
+  return w.size() > 1 ? (w.back().t - w.front().t) / static_cast<double>(w.size() - 1)
+                      : std::numeric_limits<double>::quiet_NaN();
+}
+
 // The model's state at the window's first sample: x, ẋ, T̄.
 using InitialState = Vector3;
 

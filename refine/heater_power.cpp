@@ -27,8 +27,7 @@ double true_tbar(std::span<const WindowSample> w, std::size_t k, const Nuisance&
   double tbar = w[k].tbar - n.ambient_offset.value - n.ambient_drift.value * (w[k].t - w[0].t);
   const double lag = n.sensor_lag.value;
   if (!(lag > 0.0)) return tbar;
-  const double period = (w.back().t - w.front().t) / static_cast<double>(w.size() - 1);
-  const auto h = static_cast<std::size_t>(std::max(1.0, std::round(lag / period)));
+  const auto h = static_cast<std::size_t>(std::max(1.0, std::round(lag / mean_sample_period(w))));
   const std::size_t lo = k >= h ? k - h : 0, hi = std::min(k + h, w.size() - 1);
   if (hi == lo) return tbar;
   const double slope = (w[hi].tbar - w[lo].tbar) / (w[hi].t - w[lo].t) - n.ambient_drift.value;

@@ -150,12 +150,10 @@ IntervalChoice pick_interval(const std::array<ThermalCriterion, 2>& held,
   // A free lag fits better. A lag of a period or so is the other interval in disguise (the lag
   // and the shift trade to first order, and the criterion's one slot is too little a price at a
   // coarse T sensor's noise): the shift, a discrete choice, is made without it.
-  const double n = static_cast<double>(window.size());
-  const double period = (window.back().t - window.front().t) / (n - 1.0);
-  if (best_free.lag <= kShiftLikeLagPeriods * period) return by_held;
+  if (best_free.lag <= kShiftLikeLagPeriods * mean_sample_period(window)) return by_held;
   // A real lag (tenths of a second): the interval shows only in the second-order term, so
   // `after`, the other convention than the daemon's, has to earn its place like a parameter.
-  return decided_by(free[0].score - free[1].score - std::log(n));
+  return decided_by(free[0].score - free[1].score - std::log(static_cast<double>(window.size())));
 }
 
 }  // namespace

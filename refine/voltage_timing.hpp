@@ -53,6 +53,10 @@ void add_cubic_midpoints(std::span<WindowSample> window) noexcept;
 WindowSample prepared_sample(const WindowSample& prev, const WindowSample& cur,
                              estimator::VoltageHold hold, VoltageInterval interval) noexcept;
 
+// A lag this many sampling periods long or shorter is what a one-period shift of the voltage
+// looks like in T̄ (to first order), not a sensor's.
+inline constexpr double kShiftLikeLagPeriods = 3.0;
+
 // VoltageInterval::estimate: before or after, whichever gives the thermal stage's fit (θ5, θ6,
 // T̄0 on T̄ alone, from `theta_start` as fit() starts) the lower Schwarz criterion, an estimated
 // sensor lag tried both free and held at 0 (a one-period shift trades against it). A free lag
@@ -68,9 +72,6 @@ WindowSample prepared_sample(const WindowSample& prev, const WindowSample& cur,
 // 1 s PRBS) and the sensor fine. Phase 0 and no evaluation where there are no switches.
 inline constexpr std::array<double, 3> kSwitchPhases{0.0, 0.5, 1.0};
 
-// A lag this many sampling periods long or shorter is what a one-period shift of the voltage
-// looks like in T̄ (to first order), not a sensor's.
-inline constexpr double kShiftLikeLagPeriods = 3.0;
 SwitchPhase choose_switch_phase(std::span<const WindowSample> window, VoltageInterval interval,
                                 const Vector6& theta_start, const FitSettings& settings);
 
